@@ -1,0 +1,5 @@
+"""Error type of the `ppm` package."""
+
+
+class PpmError(ValueError):
+    """Any invalid input or failed step inside `ppm` (template, rig, parameters, mesh I/O)."""

@@ -1,0 +1,201 @@
+"""The parametric pinna model (PPM) evaluated by Blender: parameters in, vertices out.
+
+`PinnaModel` builds the rig on a template (see `ppm.rig`), sets the 144 parameters on the pose
+bones and shape keys, and reads the deformed vertices from Blender's evaluated depsgraph. Output
+vertices are the template plus Blender's displacement,
+
+    X = X0 + (X_blender(p) - X_blender(p_default)),
+
+i.e. the spec's X0 + ΔX_b + ΔX_s, so the default parameters return the template bit for bit
+(Blender works in float32; its rest-pose round-off of about 1e-5 mm is removed this way).
+Millimetres, project frame (+x front, +y left, +z up). One model per process: building a model
+empties Blender's scene.
+"""
+from __future__ import annotations
+
+import json
+import logging
+import os
+from pathlib import Path
+
+import numpy as np
+import trimesh
+
+from .atomic import atomic_path, write_text_atomic
+from .deformation import RigGeometry, rig_geometry
+from .errors import PpmError
+from .landmarks import load_landmarks
+from .mesh_io import write_mesh
+from .parameters import PinnaParameters, model_layout, parameter_specs
+from .rig import ARMATURE_OBJECT, MESH_OBJECT, _bpy, build_rig, reset_blender
+from .template.store import Template, load_template
+
+log = logging.getLogger(__name__)
+
+
+class PinnaModel:
+    """The rigged template pinna in Blender.
+
+    Build it with :meth:`from_template` (a template folder, default: the packaged one) or load a
+    saved model with :meth:`from_blend`.
+    """
+
+    def __init__(self, mesh_object, armature_object, template_vertices_mm: np.ndarray, faces: np.ndarray,
+                 rig: RigGeometry | None = None):
+        self._mesh_object = mesh_object
+        self._armature_object = armature_object
+        self.template_vertices_mm = np.asarray(template_vertices_mm, np.float64)
+        self.faces = np.asarray(faces, np.int64)
+        self.rig = rig
+        self._n = len(self.template_vertices_mm)
+        self._buffer = np.empty(self._n * 3, dtype=np.float32)
+        self._bind_parameters()
+        self._current: PinnaParameters | None = None
+        self.set_parameters(PinnaParameters.default())
+        self._rest_blender = self._read_evaluated()
+
+    # -------------------------------------------------------------------------------- build
+    @classmethod
+    def from_template(cls, template: Template | str | os.PathLike | None = None) -> "PinnaModel":
+        """Rig a template (a `Template` or a template folder; default: the packaged template)."""
+        if not isinstance(template, Template):
+            template = load_template(template)
+        landmarks = load_landmarks(template)
+        names = list(model_layout()["shape_keys"])
+        rig = rig_geometry(template.vertices_mm, template.faces, landmarks, names)
+        normals = trimesh.Trimesh(template.vertices_mm, template.faces, process=False).vertex_normals
+        reset_blender()
+        ranges = {name: tuple(bounds) for name, bounds in model_layout()["shape_keys"].items()}
+        mesh_object, armature_object = build_rig(template.vertices_mm, template.faces, normals, rig, ranges)
+        return cls(mesh_object, armature_object, template.vertices_mm, template.faces, rig)
+
+    @classmethod
+    def from_blend(cls, path: str | os.PathLike) -> "PinnaModel":
+        """Open a `.blend` written by :meth:`save_blend`; the pose stored in it is kept."""
+        path = Path(path)
+        if not path.is_file():
+            raise PpmError(f"{path}: no such .blend file")
+        bpy = _bpy()
+        try:
+            bpy.ops.wm.open_mainfile(filepath=str(path))
+        except RuntimeError as exc:
+            raise PpmError(f"{path}: Blender cannot open it ({exc})") from exc
+        mesh_object = bpy.data.objects.get(MESH_OBJECT)
+        armature_object = bpy.data.objects.get(ARMATURE_OBJECT)
+        if mesh_object is None or armature_object is None or mesh_object.data.shape_keys is None:
+            raise PpmError(f"{path}: holds no PPM (objects {MESH_OBJECT!r} with shape keys and {ARMATURE_OBJECT!r})")
+        basis = mesh_object.data.shape_keys.key_blocks["Basis"]
+        rest = np.empty(len(basis.data) * 3, np.float32)
+        basis.data.foreach_get("co", rest)
+        faces = np.empty(len(mesh_object.data.polygons) * 3, np.int64)
+        mesh_object.data.polygons.foreach_get("vertices", faces)
+        stored = cls._stored_parameters(mesh_object)
+        model = cls(mesh_object, armature_object, rest.reshape(-1, 3).astype(np.float64), faces.reshape(-1, 3))
+        model.set_parameters(stored)
+        return model
+
+    # ---------------------------------------------------------------------------- parameters
+    def _bind_parameters(self) -> None:
+        """Resolve every parameter to the Blender property it drives (once, for speed)."""
+        pose = self._armature_object.pose.bones
+        keys = self._mesh_object.data.shape_keys.key_blocks
+        self._bone_slots: list[tuple[object, str, int | None]] = []
+        self._key_slots: list[object] = []
+        for spec in parameter_specs():
+            if spec.kind == "shape_key":
+                self._key_slots.append(keys[spec.target])
+            else:
+                self._bone_slots.append((pose[spec.target], spec.kind, spec.axis))
+        self._n_bone = len(self._bone_slots)
+
+    def set_parameters(self, params: PinnaParameters) -> None:
+        """Put `params` on the pose bones and shape keys (degrees become radians here)."""
+        if not isinstance(params, PinnaParameters):
+            raise PpmError(f"expected PinnaParameters, got {type(params).__name__}")
+        values = params.to_vector()
+        radians = np.deg2rad(values)
+        for (bone, kind, axis), value, angle in zip(self._bone_slots, values[: self._n_bone], radians[: self._n_bone]):
+            if kind == "location":
+                bone.location[axis] = value
+            elif kind == "rotation":
+                bone.rotation_euler[axis] = angle
+            elif axis is None:  # isotropic scale of a bendy bone
+                bone.scale = (value, value, value)
+            else:
+                bone.scale[axis] = value
+        for key, value in zip(self._key_slots, values[self._n_bone:]):
+            key.value = value
+        self._current = params
+
+    @property
+    def parameters(self) -> PinnaParameters:
+        """The parameters currently set."""
+        return self._current
+
+    def _read_evaluated(self) -> np.ndarray:
+        bpy = _bpy()
+        depsgraph = bpy.context.evaluated_depsgraph_get()
+        evaluated = self._mesh_object.evaluated_get(depsgraph)
+        evaluated.data.vertices.foreach_get("co", self._buffer)
+        return self._buffer.reshape(-1, 3).astype(np.float64)
+
+    def evaluate(self, params: PinnaParameters | None = None) -> np.ndarray:
+        """(n, 3) float64 deformed vertices in mm (project frame) for `params` (default: those set)."""
+        if params is not None:
+            self.set_parameters(params)
+        return self.template_vertices_mm + (self._read_evaluated() - self._rest_blender)
+
+    def mesh(self, params: PinnaParameters | None = None) -> trimesh.Trimesh:
+        """The deformed pinna as a trimesh (mm, project frame, template vertex order)."""
+        return trimesh.Trimesh(self.evaluate(params), self.faces, process=False)
+
+    # ----------------------------------------------------------------------------------- I/O
+    @staticmethod
+    def _stored_parameters(mesh_object) -> PinnaParameters:
+        text = mesh_object.get("ppm_parameters_json")
+        if text is None:
+            return PinnaParameters.default()
+        return PinnaParameters.from_dict(json.loads(text)["parameters"], out_of_range="clip")
+
+    def save_blend(self, path: str | os.PathLike) -> Path:
+        """Save the posed rig as a `.blend` (armature and shape keys live), atomically."""
+        path = Path(path)
+        if path.suffix != ".blend":
+            raise PpmError(f"{path}: a Blender file must end in .blend")
+        bpy = _bpy()
+        self._mesh_object["ppm_parameters_json"] = self._current.to_json()
+        with atomic_path(path) as tmp:
+            bpy.ops.wm.save_as_mainfile(filepath=str(tmp), copy=True, compress=True)
+        return path
+
+    def export(self, path: str | os.PathLike, params: PinnaParameters | None = None) -> Path:
+        """Write the deformed pinna as PLY, STL or OBJ (by suffix) in mm, project frame, vertex order kept."""
+        return write_mesh(path, self.evaluate(params), self.faces)
+
+    def write_parameters(self, path: str | os.PathLike) -> Path:
+        """Write the current parameters as CSV or JSON (by suffix)."""
+        return self._current.write(path)
+
+
+def bone_polylines(model: PinnaModel, samples_per_segment: int = 1) -> dict[str, np.ndarray]:
+    """Current (posed) centre line of every bone, in mm, project frame.
+
+    Bendy bones give their B-Bone segment positions (head to tail); straight bones give head and
+    tail. Useful for drawing the armature.
+    """
+    bpy = _bpy()
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    armature = model._armature_object.evaluated_get(depsgraph)
+    world = np.array(armature.matrix_world)
+    lines = {}
+    for pose_bone in armature.pose.bones:
+        matrix = world @ np.array(pose_bone.matrix)
+        segments = pose_bone.bone.bbone_segments
+        if segments > 1:
+            points = [(matrix @ np.array(pose_bone.bbone_segment_matrix(i, rest=False)))[:3, 3]
+                      for i in range(segments + 1)]
+        else:
+            points = [np.array(pose_bone.head), np.array(pose_bone.tail)]
+            points = [(world @ np.r_[p, 1.0])[:3] for p in points]
+        lines[pose_bone.name] = np.asarray(points, dtype=np.float64)
+    return lines

@@ -1,0 +1,119 @@
+"""Off-screen pictures of the PPM with pyvista: the posed model with its armature, and a sheet of
+every curve and shape key at its range limits. Millimetres, project frame (+x front, +y left, +z up);
+the lateral view looks at the left pinna from +y.
+"""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from .atomic import atomic_path
+from .model import PinnaModel, bone_polylines
+from .parameters import PinnaParameters, model_layout, parameter_specs
+
+CURVE_COLOURS = ("#e6194b", "#3cb44b", "#4363d8", "#f58231", "#911eb4", "#42d4f4", "#f032e6", "#9a6324", "#469990")
+
+
+def _pyvista():
+    import pyvista as pv  # noqa: PLC0415  (VTK is heavy: load it when a picture is made)
+
+    pv.OFF_SCREEN = True
+    return pv
+
+
+def _polydata(pv, vertices_mm: np.ndarray, faces: np.ndarray):
+    return pv.PolyData(vertices_mm, np.hstack([np.full((len(faces), 1), 3), faces]).ravel())
+
+
+def _lateral_camera(plotter, vertices_mm: np.ndarray, distance_mm: float = 260.0) -> None:
+    centre = vertices_mm.mean(axis=0)
+    plotter.camera_position = [tuple(centre + [0.0, distance_mm, 0.0]), tuple(centre), (0.0, 0.0, 1.0)]
+    plotter.camera.parallel_projection = True
+    plotter.camera.parallel_scale = 0.55 * np.ptp(vertices_mm[:, 2])
+
+
+def render_model(model: PinnaModel, path: str | os.PathLike, params: PinnaParameters | None = None,
+                 size_px: tuple[int, int] = (1600, 800)) -> Path:
+    """PNG of the posed PPM with its armature: lateral view (from +y) and a view from the front (+x)."""
+    pv = _pyvista()
+    vertices = model.evaluate(params)
+    lines = bone_polylines(model)
+    curves = model_layout()["curves"]
+    plotter = pv.Plotter(off_screen=True, shape=(1, 2), window_size=size_px)
+    for column, (eye, up) in enumerate((([0, 1, 0], [0, 0, 1]), ([1, 0, 0], [0, 0, 1]))):
+        plotter.subplot(0, column)
+        plotter.add_mesh(_polydata(pv, vertices, model.faces), color="tan", smooth_shading=True, opacity=0.55)
+        for colour, curve in zip(CURVE_COLOURS, curves):
+            bendy = lines[f"{curve}-Bendy"]
+            plotter.add_mesh(pv.Spline(bendy, 60).tube(radius=0.5), color=colour)
+            for end in ("Start", "End"):
+                control = lines[f"{curve}-{end}"]
+                plotter.add_mesh(pv.Line(control[0], control[-1]).tube(radius=0.35), color="black")
+                plotter.add_mesh(pv.Sphere(radius=0.9, center=control[0]), color=colour)
+        parent = lines[model_layout()["parent_bone"]]
+        plotter.add_mesh(pv.Line(parent[0], parent[-1]).tube(radius=0.6), color="gray")
+        centre = vertices.mean(axis=0)
+        plotter.camera_position = [tuple(centre + 260.0 * np.array(eye)), tuple(centre), tuple(up)]
+        plotter.camera.parallel_projection = True
+        plotter.camera.parallel_scale = 0.55 * np.ptp(vertices[:, 2])
+        plotter.add_text(["lateral view (from +y)", "front view (from +x)"][column], font_size=12)
+    if column == 0:  # pragma: no cover
+        pass
+    plotter.subplot(0, 0)
+    plotter.add_legend([(c, col) for c, col in zip(curves, CURVE_COLOURS)], bcolor="white", size=(0.3, 0.35))
+    path = Path(path)
+    with atomic_path(path) as tmp:
+        plotter.screenshot(str(tmp))
+    plotter.close()
+    return path
+
+
+def range_sheet_items() -> list[tuple[str, dict[str, float], dict[str, float]]]:
+    """(title, lower-limit parameters, upper-limit parameters) for each curve and shape key.
+
+    A curve is shown with both its control bones moved along their Z axis (the surface normal) to
+    the location bounds; the parent curve with its isotropic size at the scale bounds; a shape key
+    at its weight bounds.
+    """
+    specs = {s.name: s for s in parameter_specs()}
+    layout = model_layout()
+    parent = layout["parent_bone"]
+    items = [(f"{parent} (scale)", {f"Scale_{parent}_{a}": specs[f"Scale_{parent}_{a}"].lower for a in "XYZ"},
+              {f"Scale_{parent}_{a}": specs[f"Scale_{parent}_{a}"].upper for a in "XYZ"})]
+    for curve in layout["curves"]:
+        names = [f"Location_{curve}-{end}_Z" for end in ("Start", "End")]
+        items.append((f"{curve} (location Z)", {n: specs[n].lower for n in names}, {n: specs[n].upper for n in names}))
+    for key in layout["shape_keys"]:
+        name = f"Shape_key_{key}"
+        items.append((key, {name: specs[name].lower}, {name: specs[name].upper}))
+    return items
+
+
+def render_range_sheet(model: PinnaModel, path: str | os.PathLike, columns: int = 8,
+                       panel_px: int = 300, max_colour_mm: float = 5.0) -> Path:
+    """PNG sheet: every curve and shape key at the lower and upper limit of its range, lateral view,
+    coloured by the displacement from the template (0 to `max_colour_mm`)."""
+    pv = _pyvista()
+    items = range_sheet_items()
+    panels = [(f"{title}\n{side}", values) for title, low, high in items for side, values in (("min", low), ("max", high))]
+    rows = int(np.ceil(len(panels) / columns))
+    plotter = pv.Plotter(off_screen=True, shape=(rows, columns), window_size=(columns * panel_px, rows * panel_px),
+                         border=False)
+    rest = model.template_vertices_mm
+    for index, (title, values) in enumerate(panels):
+        plotter.subplot(index // columns, index % columns)
+        vertices = model.evaluate(PinnaParameters.from_dict(values))
+        mesh = _polydata(pv, vertices, model.faces)
+        mesh["displacement_mm"] = np.linalg.norm(vertices - rest, axis=1)
+        plotter.add_mesh(mesh, scalars="displacement_mm", clim=(0.0, max_colour_mm), cmap="viridis",
+                         smooth_shading=True, show_scalar_bar=False)
+        plotter.add_text(title, font_size=7)
+        _lateral_camera(plotter, rest)
+    model.set_parameters(PinnaParameters.default())
+    path = Path(path)
+    with atomic_path(path) as tmp:
+        plotter.screenshot(str(tmp))
+    plotter.close()
+    return path

@@ -1,0 +1,39 @@
+# Config validation, wildcard constraints and input functions (no rules here).
+from pathlib import Path
+
+from snakemake.utils import validate
+
+validate(config, "../config/schema.yaml")
+
+DATA_ROOT = Path(config["data_root"]) if config["data_root"] else None
+SUBJECTS = (
+    sorted(p.name for p in DATA_ROOT.iterdir() if (p / "pinna_left_crop.ply").is_file())
+    if DATA_ROOT is not None
+    else []
+)
+if DATA_ROOT is not None and not SUBJECTS:
+    raise ValueError(
+        f"config key data_root={config['data_root']!r}: no <subject>/pinna_left_crop.ply under it; "
+        "point data_root to a dataset folder or leave it empty for the bundled default"
+    )
+
+
+wildcard_constraints:
+    subject="|".join(SUBJECTS) if SUBJECTS else "[A-Za-z0-9_-]+",
+
+
+def template_params():
+    """Settings of the template build, from config/template."""
+    return config["template"]
+
+
+def get_final_output():
+    """Everything `snakemake --cores 2` makes: PPM pictures, and LOO templates when data is configured."""
+    out = [
+        "results/ppm/default_ppm.png",
+        "results/ppm/range_sheet.png",
+        "results/ppm/default_ppm.blend",
+        "results/ppm/default_parameters.csv",
+    ]
+    out += [f"results/templates/without_{s}/template_left.ply" for s in SUBJECTS]
+    return out

@@ -1,0 +1,18 @@
+# Pictures and files of the default parametric pinna model.
+
+
+rule render_ppm:
+    output:
+        picture="results/ppm/default_ppm.png",
+        sheet="results/ppm/range_sheet.png",
+        blend="results/ppm/default_ppm.blend",
+        parameters="results/ppm/default_parameters.csv",
+    log:
+        "logs/ppm/render_ppm.log",
+    benchmark:
+        "benchmarks/ppm/render_ppm.tsv"
+    threads: 1
+    resources:
+        mem_mb=3000,
+    script:
+        "scripts/render_ppm.py"

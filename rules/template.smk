@@ -1,0 +1,22 @@
+# Template pinna builds: the average left pinna of a dataset, leaving one subject out.
+
+
+rule build_template:
+    input:
+        data_root=lambda wc: str(DATA_ROOT),
+    output:
+        mesh="results/templates/without_{subject}/template_left.ply",
+        provenance="results/templates/without_{subject}/provenance.json",
+        landmarks="results/templates/without_{subject}/landmarks.yaml",
+    log:
+        "logs/template/build_template/{subject}.log",
+    benchmark:
+        "benchmarks/template/build_template/{subject}.tsv"
+    params:
+        settings=template_params(),
+    threads: 1
+    resources:
+        mem_mb=4000,
+        runtime=60,
+    script:
+        "scripts/build_template.py"

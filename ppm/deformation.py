@@ -2,10 +2,13 @@
 
 Frame: millimetres, +x front, +y left, +z up. Everything here is NumPy; `ppm.rig` hands the
 results to Blender. Weights fall off smoothly with the geodesic distance from each bendy bone's
-anatomical curve; where curves overlap their weights are normalised to sum to at most 1, and the
-parent bone takes the rest, so every vertex is fully weighted and there are no seams. Each shape
+anatomical curve; where curves overlap their weights are normalised to sum to at most 1, and a
+static root bone takes the rest, so every vertex is fully weighted and there are no seams (the
+parent bone then moves everything as one affine map, see `ppm.rig`). Each shape
 key is a smooth, local displacement: along the vertex normal (depths, creases, dents, forms), or
-radially away from an axis (ear-canal diameter).
+radially away from an axis (ear-canal diameter). The normals used are smoothed over the key's
+radius, so a key moves a region as a whole. Regions, radii and amplitudes are data in
+`ppm/data/rig.yaml`.
 """
 from __future__ import annotations
 
@@ -49,8 +52,8 @@ class CurveGeometry:
 class RigGeometry:
     """Everything Blender needs besides the template: bones, weights and shape-key displacements.
 
-    weights : (n, 10) float, columns in the order of `weight_names` (the 9 bendy bones, then the parent);
-    rows sum to 1. shape_key_offsets_mm : (18, n, 3) float, displacement at weight 1.
+    weights : (n, 10) float, columns in the order of `weight_names` (the 9 bendy bones, then the static
+    root bone of the curve armature, which holds the remainder); rows sum to 1. shape_key_offsets_mm : (18, n, 3) float, displacement at weight 1.
     """
 
     parent_head_mm: np.ndarray
@@ -93,12 +96,25 @@ def curve_geometry(vertices_mm: np.ndarray, graph, landmarks: dict[str, int]) ->
 
 
 def bone_weights(vertices_mm: np.ndarray, graph, curves: tuple[CurveGeometry, ...]) -> np.ndarray:
-    """(n, 10) weights: 9 bendy bones (smooth geodesic fall-off, normalised where they overlap) + parent."""
+    """(n, 10) weights: 9 bendy bones (smooth geodesic fall-off, normalised where they overlap) + remainder."""
     radii = {name: float(spec["radius_mm"]) for name, spec in rig_layout()["curves"].items()}
     raw = np.stack([falloff(distance_from(graph, c.path) / radii[c.name]) for c in curves], axis=1)
     total = raw.sum(axis=1, keepdims=True)
     raw = np.where(total > 1.0, raw / np.maximum(total, 1e-12), raw)
     return np.concatenate([raw, 1.0 - raw.sum(axis=1, keepdims=True)], axis=1)
+
+
+def smoothed_normals(graph, normals: np.ndarray, scale_mm: float) -> np.ndarray:
+    """Unit vertex normals diffused over the edge graph to a smoothing scale of about `scale_mm`."""
+    from scipy.sparse import diags, identity
+
+    adjacency = (graph > 0).astype(np.float64) + identity(graph.shape[0], format="csr")
+    step = diags(1.0 / np.asarray(adjacency.sum(axis=1)).ravel()) @ adjacency
+    edge_mm = float(np.median(graph.data))
+    field = np.asarray(normals, dtype=np.float64)
+    for _ in range(int(min(200, round((scale_mm / edge_mm) ** 2)))):
+        field = step @ field
+    return field / np.maximum(np.linalg.norm(field, axis=1, keepdims=True), 1e-12)
 
 
 def shape_key_offsets(mesh: trimesh.Trimesh, graph, landmarks: dict[str, int],
@@ -115,12 +131,17 @@ def shape_key_offsets(mesh: trimesh.Trimesh, graph, landmarks: dict[str, int],
         path = path_through(graph, _landmark_ids(landmarks, spec["path"], f"shape key {name}"))
         profile = falloff(distance_from(graph, path) / float(spec["radius_mm"]))
         if spec["kind"] == "normal":
-            direction = normals
+            # the normal field smoothed over about the key's radius: a narrow groove (scapha) deepens
+            # as a whole instead of its walls folding into each other
+            direction = smoothed_normals(graph, normals, float(spec["radius_mm"]))
         elif spec["kind"] == "radial":
-            a, b = vertices[_landmark_ids(landmarks, spec["axis"], f"shape key {name}")]
-            axis = (b - a) / np.linalg.norm(b - a)
+            a = vertices[_landmark_ids(landmarks, [spec["axis_point"]], f"shape key {name}")[0]]
+            axis = np.asarray(spec["axis_direction"], dtype=np.float64)
+            axis = axis / np.linalg.norm(axis)
             radial = (vertices - a) - np.outer((vertices - a) @ axis, axis)
-            direction = radial / np.maximum(np.linalg.norm(radial, axis=1, keepdims=True), 1e-9)
+            r = np.linalg.norm(radial, axis=1, keepdims=True)
+            core = float(spec["core_radius_mm"])  # the canal floor near the axis stretches, it is not torn
+            direction = radial / np.maximum(r, 1e-9) * (r * r / (r * r + core * core))
         else:
             raise PpmError(f"shape key {name!r}: kind must be 'normal' or 'radial', got {spec['kind']!r}")
         offsets[k] = float(spec["amplitude_mm"]) * profile[:, None] * direction
@@ -136,6 +157,6 @@ def rig_geometry(vertices_mm: np.ndarray, faces: np.ndarray, landmarks: dict[str
     weights = bone_weights(vertices_mm, graph, curves)
     parent_head = np.asarray(vertices_mm, np.float64)[_landmark_ids(landmarks, [rig_layout()["parent"]["head"]],
                                                                     "parent bone")[0]]
-    names = tuple(f"{c.name}-Bendy" for c in curves) + (rig_layout()["parent"]["bone"],)
+    names = tuple(f"{c.name}-Bendy" for c in curves) + (rig_layout()["parent"]["root_bone"],)
     offsets = shape_key_offsets(mesh, graph, landmarks, shape_key_names)
     return RigGeometry(parent_head, curves, names, weights, tuple(shape_key_names), offsets)

@@ -22,12 +22,12 @@ import numpy as np
 import trimesh
 
 from .atomic import atomic_path, write_text_atomic
-from .deformation import RigGeometry, rig_geometry
+from .deformation import RigGeometry, rig_geometry, rig_layout
 from .errors import PpmError
 from .landmarks import load_landmarks
 from .mesh_io import write_mesh
 from .parameters import PinnaParameters, model_layout, parameter_specs
-from .rig import ARMATURE_OBJECT, MESH_OBJECT, _bpy, build_rig, reset_blender
+from .rig import ARMATURE_OBJECT, MESH_OBJECT, PARENT_OBJECT, _bpy, build_rig, reset_blender
 from .template.store import Template, load_template
 
 log = logging.getLogger(__name__)
@@ -40,10 +40,11 @@ class PinnaModel:
     saved model with :meth:`from_blend`.
     """
 
-    def __init__(self, mesh_object, armature_object, template_vertices_mm: np.ndarray, faces: np.ndarray,
-                 rig: RigGeometry | None = None):
+    def __init__(self, mesh_object, armature_object, size_object, template_vertices_mm: np.ndarray,
+                 faces: np.ndarray, rig: RigGeometry | None = None):
         self._mesh_object = mesh_object
         self._armature_object = armature_object
+        self._size_object = size_object
         self.template_vertices_mm = np.asarray(template_vertices_mm, np.float64)
         self.faces = np.asarray(faces, np.int64)
         self.rig = rig
@@ -66,8 +67,9 @@ class PinnaModel:
         normals = trimesh.Trimesh(template.vertices_mm, template.faces, process=False).vertex_normals
         reset_blender()
         ranges = {name: tuple(bounds) for name, bounds in model_layout()["shape_keys"].items()}
-        mesh_object, armature_object = build_rig(template.vertices_mm, template.faces, normals, rig, ranges)
-        return cls(mesh_object, armature_object, template.vertices_mm, template.faces, rig)
+        objects = build_rig(template.vertices_mm, template.faces, normals, rig, ranges, model_layout()["parent_bone"],
+                            rig_layout()["bendy"]["segments"])
+        return cls(*objects, template.vertices_mm, template.faces, rig)
 
     @classmethod
     def from_blend(cls, path: str | os.PathLike) -> "PinnaModel":
@@ -82,22 +84,26 @@ class PinnaModel:
             raise PpmError(f"{path}: Blender cannot open it ({exc})") from exc
         mesh_object = bpy.data.objects.get(MESH_OBJECT)
         armature_object = bpy.data.objects.get(ARMATURE_OBJECT)
-        if mesh_object is None or armature_object is None or mesh_object.data.shape_keys is None:
-            raise PpmError(f"{path}: holds no PPM (objects {MESH_OBJECT!r} with shape keys and {ARMATURE_OBJECT!r})")
+        size_object = bpy.data.objects.get(PARENT_OBJECT)
+        if None in (mesh_object, armature_object, size_object) or mesh_object.data.shape_keys is None:
+            raise PpmError(f"{path}: holds no PPM (objects {MESH_OBJECT!r} with shape keys, {ARMATURE_OBJECT!r} "
+                           f"and {PARENT_OBJECT!r})")
         basis = mesh_object.data.shape_keys.key_blocks["Basis"]
         rest = np.empty(len(basis.data) * 3, np.float32)
         basis.data.foreach_get("co", rest)
         faces = np.empty(len(mesh_object.data.polygons) * 3, np.int64)
         mesh_object.data.polygons.foreach_get("vertices", faces)
         stored = cls._stored_parameters(mesh_object)
-        model = cls(mesh_object, armature_object, rest.reshape(-1, 3).astype(np.float64), faces.reshape(-1, 3))
+        model = cls(mesh_object, armature_object, size_object, rest.reshape(-1, 3).astype(np.float64),
+                    faces.reshape(-1, 3))
         model.set_parameters(stored)
         return model
 
     # ---------------------------------------------------------------------------- parameters
     def _bind_parameters(self) -> None:
         """Resolve every parameter to the Blender property it drives (once, for speed)."""
-        pose = self._armature_object.pose.bones
+        pose = {**{b.name: b for b in self._armature_object.pose.bones},
+                **{b.name: b for b in self._size_object.pose.bones}}
         keys = self._mesh_object.data.shape_keys.key_blocks
         self._bone_slots: list[tuple[object, str, int | None]] = []
         self._key_slots: list[object] = []
@@ -137,7 +143,9 @@ class PinnaModel:
         depsgraph = bpy.context.evaluated_depsgraph_get()
         evaluated = self._mesh_object.evaluated_get(depsgraph)
         evaluated.data.vertices.foreach_get("co", self._buffer)
-        return self._buffer.reshape(-1, 3).astype(np.float64)
+        local = self._buffer.reshape(-1, 3).astype(np.float64)
+        world = np.array(evaluated.matrix_world)  # the parent bone's affine map (identity at rest)
+        return local @ world[:3, :3].T + world[:3, 3]
 
     def evaluate(self, params: PinnaParameters | None = None) -> np.ndarray:
         """(n, 3) float64 deformed vertices in mm (project frame) for `params` (default: those set)."""
@@ -185,7 +193,14 @@ def bone_polylines(model: PinnaModel, samples_per_segment: int = 1) -> dict[str,
     """
     bpy = _bpy()
     depsgraph = bpy.context.evaluated_depsgraph_get()
-    armature = model._armature_object.evaluated_get(depsgraph)
+    lines = {}
+    for obj in (model._size_object, model._armature_object):
+        armature = obj.evaluated_get(depsgraph)
+        lines.update(_armature_polylines(armature))
+    return lines
+
+
+def _armature_polylines(armature) -> dict[str, np.ndarray]:
     world = np.array(armature.matrix_world)
     lines = {}
     for pose_bone in armature.pose.bones:

@@ -59,10 +59,8 @@ def render_model(model: PinnaModel, path: str | os.PathLike, params: PinnaParame
         plotter.camera.parallel_projection = True
         plotter.camera.parallel_scale = 0.55 * np.ptp(vertices[:, 2])
         plotter.add_text(["lateral view (from +y)", "front view (from +x)"][column], font_size=12)
-    if column == 0:  # pragma: no cover
-        pass
-    plotter.subplot(0, 0)
-    plotter.add_legend([(c, col) for c, col in zip(curves, CURVE_COLOURS)], bcolor="white", size=(0.3, 0.35))
+    plotter.add_legend([(c, col) for c, col in zip(curves, CURVE_COLOURS)], bcolor="white", size=(0.28, 0.3),
+                       loc="lower right")
     path = Path(path)
     with atomic_path(path) as tmp:
         plotter.screenshot(str(tmp))

@@ -126,7 +126,8 @@ def build_template(scans: list[EarScan], *, topology: trimesh.Trimesh | None = N
     Returns
     -------
     template : trimesh.Trimesh
-        The mean pinna, in mm, in the project frame, with the vertex order of the topology.
+        The mean pinna, in mm, in the project frame, with the vertex order of `topology` when one
+        is given (otherwise a fresh isotropic remesh of the mean).
     residuals : list of dict
         Per scan, the last round's registration residuals (see :func:`register_to_scans`).
     """
@@ -138,6 +139,9 @@ def build_template(scans: list[EarScan], *, topology: trimesh.Trimesh | None = N
                  len(current.vertices), len(scans))
         shapes, residuals = register_to_scans(current, scans)
         current = trimesh.Trimesh(procrustes_mean(shapes), current.faces, process=False)
+    if topology is None:
+        # a new common topology: remesh the mean once more, so averaging leaves no slivers in creases
+        current = remesh_isotropic(current, edge_mm)
     return current, residuals
 
 
@@ -177,7 +181,7 @@ def build_template_folder(data_root: str | Path, out_dir: str | Path, *, exclude
         "excluded_subjects": exclude,
         "source_and_licence": source,
         "topology": "reused from " + str(topology_dir) if topology_dir is not None
-        else f"remeshed crop of {scans[0].label}",
+        else f"remeshed crop of {scans[0].label}; the final mean remeshed once more",
         "settings": {"edge_mm": edge_mm, "margin_mm": margin_mm, "rounds": rounds},
         "registration_residuals": residuals,
         "n_vertices": int(len(mesh.vertices)), "n_faces": int(len(mesh.faces)),

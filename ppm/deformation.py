@@ -144,7 +144,9 @@ def shape_key_offsets(mesh: trimesh.Trimesh, graph, landmarks: dict[str, int],
             direction = radial / np.maximum(r, 1e-9) * (r * r / (r * r + core * core))
         else:
             raise PpmError(f"shape key {name!r}: kind must be 'normal' or 'radial', got {spec['kind']!r}")
-        offsets[k] = float(spec["amplitude_mm"]) * profile[:, None] * direction
+        field = profile[:, None] * direction
+        # amplitude_mm is the largest displacement of the key at weight 1
+        offsets[k] = float(spec["amplitude_mm"]) * field / np.linalg.norm(field, axis=1).max()
     return offsets
 
 

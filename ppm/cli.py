@@ -108,7 +108,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         args.func(args)
     except PpmError as exc:
-        print(f"ppm: error: {exc}", file=sys.stderr)
+        hint = " (on the command line: --clip)" if "out_of_range='clip'" in str(exc) else ""
+        print(f"ppm: error: {exc}{hint}", file=sys.stderr)
         return 2
     return 0
 

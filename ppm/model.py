@@ -172,7 +172,9 @@ class PinnaModel:
             raise PpmError(f"{path}: a Blender file must end in .blend")
         bpy = _bpy()
         self._mesh_object["ppm_parameters_json"] = self._current.to_json()
+        bpy.context.preferences.filepaths.save_version = 0  # no .blend1 backups next to outputs
         with atomic_path(path) as tmp:
+            tmp.unlink()  # Blender writes the file itself
             bpy.ops.wm.save_as_mainfile(filepath=str(tmp), copy=True, compress=True)
         return path
 

@@ -6,6 +6,11 @@ from snakemake.utils import validate
 validate(config, "../config/schema.yaml")
 
 DATA_ROOT = Path(config["data_root"]) if config["data_root"] else None
+if DATA_ROOT is not None and not DATA_ROOT.is_dir():
+    raise ValueError(
+        f"config key data_root={config['data_root']!r}: no such folder; give a dataset folder of "
+        "<subject>/pinna_left_crop.ply, or leave data_root empty for the bundled default"
+    )
 SUBJECTS = (
     sorted(p.name for p in DATA_ROOT.iterdir() if (p / "pinna_left_crop.ply").is_file())
     if DATA_ROOT is not None

@@ -15,4 +15,4 @@ rule render_ppm:
     resources:
         mem_mb=3000,
     script:
-        "scripts/render_ppm.py"
+        "../workflow/scripts/render_ppm.py"

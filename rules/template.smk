@@ -19,4 +19,4 @@ rule build_template:
         mem_mb=4000,
         runtime=60,
     script:
-        "scripts/build_template.py"
+        "../workflow/scripts/build_template.py"

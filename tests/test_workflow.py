@@ -1,0 +1,61 @@
+"""The Snakemake workflow, really run: config validation, DAG, and the default target on the bundled data."""
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+import trimesh
+
+ROOT = Path(__file__).resolve().parents[1]
+SNAKEMAKE = [sys.executable, "-m", "snakemake"]
+
+
+def _copy_workflow(tmp_path: Path) -> Path:
+    """A clean copy of the workflow files (no results), as a user's checkout would be."""
+    work = tmp_path / "project"
+    for folder in ("workflow", "rules", "config"):
+        shutil.copytree(ROOT / folder, work / folder)
+    return work
+
+
+def _run(args: list[str], cwd: Path, timeout: int = 600) -> subprocess.CompletedProcess:
+    return subprocess.run(SNAKEMAKE + args, cwd=cwd, capture_output=True, text=True, timeout=timeout)
+
+
+def test_dry_run_with_a_dataset_plans_one_template_per_subject(tmp_path, sonicom):
+    work = _copy_workflow(tmp_path)
+    done = _run(["-n", "--cores", "2", "--config", f"data_root={sonicom}"], work)
+    assert done.returncode == 0, done.stderr[-3000:]
+    text = done.stdout + done.stderr
+    for subject in ("P039", "P067", "P143"):
+        assert f"results/templates/without_{subject}/template_left.ply" in text
+
+
+def test_config_errors_stop_before_any_work(tmp_path):
+    work = _copy_workflow(tmp_path)
+    done = _run(["-n", "--cores", "1", "--config", f"data_root={tmp_path / 'nowhere'}"], work)
+    assert done.returncode != 0
+    assert "config key data_root=" in done.stdout + done.stderr
+    done = _run(["-n", "--cores", "1", "--config", "template={'edge_mm': 0.01, 'margin_mm': 6, 'rounds': 2}"], work)
+    assert done.returncode != 0
+    assert "edge_mm" in done.stdout + done.stderr
+    assert not (work / "results").exists()
+
+
+def test_default_run_makes_the_ppm_pictures_blend_and_parameters(tmp_path):
+    work = _copy_workflow(tmp_path)
+    done = _run(["--cores", "2"], work)
+    assert done.returncode == 0, done.stderr[-3000:]
+    out = work / "results" / "ppm"
+    for name in ("default_ppm.png", "range_sheet.png"):
+        assert (out / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert (out / "default_ppm.blend").stat().st_size > 100_000
+    lines = (out / "default_parameters.csv").read_text().splitlines()
+    assert lines[0].startswith("name,value") and len(lines) == 145
+    assert (work / "logs" / "ppm" / "render_ppm.log").is_file()
+    # nothing half-written is left behind
+    assert not list(out.glob(".*partial*"))
+    # a second run has nothing to do
+    again = _run(["--cores", "2", "-n"], work)
+    assert "Nothing to be done" in again.stdout + again.stderr

@@ -1,0 +1,126 @@
+"""Preparation of a scanned pinna as an alignment target (millimetres, project frame).
+
+Checks (via `ppm.mesh_io`): file readable and not empty, triangles, no NaN, millimetres, left ear
+(a right ear is mirrored on request). Then: the pinna plus a ring of skin is cut out of the crop
+(`ppm.template.segment`), isolated outlier points are removed (statistical distance to their
+neighbours), and the share of the pinna surface missing to holes is estimated so a badly
+incomplete scan is flagged instead of silently fitted.
+"""
+from __future__ import annotations
+
+import dataclasses
+import logging
+import os
+from pathlib import Path
+
+import numpy as np
+import trimesh
+from scipy.spatial import cKDTree
+
+from ..errors import PpmError
+from ..mesh_io import load_left_pinna
+from ..template.segment import crop_to_region, pinna_region
+
+log = logging.getLogger(__name__)
+
+#: A scan point farther from its neighbours than this many median spacings is an outlier.
+OUTLIER_SPACING_FACTOR = 6.0
+#: Warn when more than this share of the expected pinna surface is missing.
+MAX_HOLE_SHARE = 0.25
+
+
+@dataclasses.dataclass(frozen=True)
+class Target:
+    """A prepared pinna scan.
+
+    points_mm : (n, 3) float
+        Target points (the scan's pinna-region vertices, outliers removed), mm, project frame.
+    normals : (n, 3) float
+        Unit outward normals at the points.
+    mesh : trimesh.Trimesh
+        The pinna-region surface of the scan.
+    source : str
+        Where it came from.
+    warnings : tuple of str
+        Problems found that did not stop the preparation (they go into the fit's summary).
+    """
+
+    points_mm: np.ndarray
+    normals: np.ndarray
+    mesh: trimesh.Trimesh
+    source: str
+    warnings: tuple[str, ...] = ()
+
+
+def remove_outliers(points_mm: np.ndarray, neighbours: int = 8) -> np.ndarray:
+    """Boolean mask of the points to keep: mean distance to `neighbours` nearest points is not
+    more than OUTLIER_SPACING_FACTOR times the median of that distance."""
+    tree = cKDTree(points_mm)
+    distance, _ = tree.query(points_mm, k=neighbours + 1)
+    spacing = distance[:, 1:].mean(axis=1)
+    return spacing <= OUTLIER_SPACING_FACTOR * np.median(spacing)
+
+
+def hole_share(mesh: trimesh.Trimesh) -> float:
+    """Estimated share of the surface missing to holes: the area that closing the inner boundary
+    loops (all but the longest, outer one) would add, relative to the whole."""
+    edges = mesh.edges_sorted[trimesh.grouping.group_rows(mesh.edges_sorted, require_count=1)]
+    if len(edges) == 0:
+        return 0.0
+    loops = trimesh.graph.connected_components(edges, min_len=3)
+    lengths = [np.linalg.norm(np.diff(mesh.vertices[np.r_[loop, loop[:1]]], axis=0), axis=1).sum()
+               for loop in loops]
+    order = np.argsort(lengths)[::-1]
+    missing = 0.0
+    for index in order[1:]:
+        ring = mesh.vertices[loops[index]]
+        centre = ring.mean(axis=0)
+        # area of the fan from the loop centre (loop vertices are unordered: use their convex spread)
+        radius = np.linalg.norm(ring - centre, axis=1).mean()
+        missing += np.pi * radius * radius
+    return float(missing / (missing + mesh.area))
+
+
+def prepare_target(path: str | os.PathLike, side: str = "left", margin_mm: float = 3.0,
+                   segment: bool = True) -> Target:
+    """Load and prepare a pinna scan for alignment.
+
+    Parameters
+    ----------
+    path : path-like
+        PLY, STL or OBJ in millimetres, project frame.
+    side : {'left', 'right'}
+        Which ear the file holds; a right ear is mirrored (y -> -y) into a left one.
+    margin_mm : float
+        Width of the skin ring kept around the detected pinna (keep it under the template's 6 mm).
+    segment : bool
+        Cut the pinna out of a crop that holds head skin (False: use the whole mesh).
+
+    Raises
+    ------
+    PpmError
+        For unreadable, empty or NaN files, wrong units or side, or a mesh that holds no pinna.
+    """
+    mesh = load_left_pinna(path, side)
+    warnings: list[str] = []
+    mesh.remove_unreferenced_vertices()
+    if segment:
+        try:
+            region = pinna_region(mesh, margin_mm=margin_mm)
+        except PpmError as exc:
+            raise PpmError(f"{path}: {exc}") from exc
+        mesh = crop_to_region(mesh, region)
+    keep = remove_outliers(mesh.vertices)
+    if (~keep).any():
+        warnings.append(f"{int((~keep).sum())} isolated outlier points removed")
+    share = hole_share(mesh)
+    if share > MAX_HOLE_SHARE:
+        warnings.append(f"about {100 * share:.0f} % of the pinna surface is missing to holes; "
+                        "distances there are not measured and the fit is less constrained")
+    normals = np.asarray(mesh.vertex_normals)
+    points = np.asarray(mesh.vertices)[keep]
+    if len(points) < 500:
+        raise PpmError(f"{path}: only {len(points)} usable pinna points; a scan of about 1 mm resolution is needed")
+    for message in warnings:
+        log.warning("%s: %s", path, message)
+    return Target(points, normals[keep], mesh, str(path), tuple(warnings))

@@ -54,6 +54,21 @@ def _pose(args: argparse.Namespace) -> None:
             model.export(out)
 
 
+def _align(args: argparse.Namespace) -> None:
+    import json
+
+    from .align import AlignSettings, align, prepare_target
+    from .align.report import write_alignment
+
+    model = _model(args)
+    target = prepare_target(args.target, side=args.side, margin_mm=args.margin_mm, segment=not args.no_segment)
+    result = align(model, target, AlignSettings())
+    summary = write_alignment(args.out, model, target, result)
+    print(json.dumps(summary["distance_target_to_ppm"]))
+    for warning in summary["warnings"]:
+        print(f"ppm: warning: {warning}", file=sys.stderr)
+
+
 def _snap(args: argparse.Namespace) -> None:
     from .landmarks import LANDMARKS_NAME, snap_landmarks
     from .template.store import load_template
@@ -97,6 +112,15 @@ def main(argv: list[str] | None = None) -> int:
     pose.add_argument("out", nargs="+", help="output files; the format follows the suffix")
     model_options(pose)
     pose.set_defaults(func=_pose)
+
+    fit = sub.add_parser("align", help="fit the PPM to a pinna scan and write parameters, meshes and distances")
+    fit.add_argument("target", help="pinna scan (PLY/STL/OBJ, mm, +x front, +y left, +z up)")
+    fit.add_argument("--out", required=True, help="output folder")
+    fit.add_argument("--side", choices=("left", "right"), default="left", help="which ear the scan holds")
+    fit.add_argument("--margin-mm", type=float, default=3.0, help="skin ring kept around the detected pinna, mm")
+    fit.add_argument("--no-segment", action="store_true", help="the scan is the pinna alone: do not cut it out")
+    fit.add_argument("--template", default=None, help="template folder (default: the packaged one)")
+    fit.set_defaults(func=_align)
 
     snap = sub.add_parser("snap-landmarks", help="snap a template's picked landmark positions to vertex ids")
     snap.add_argument("template", help="template folder holding landmarks.yaml")

@@ -11,7 +11,7 @@ rule build_template:
     log:
         "logs/template/build_template/{subject}.log",
     benchmark:
-        "benchmarks/template/build_template/{subject}.tsv"
+        "benchmarks/timings/template/build_template/{subject}.tsv"
     params:
         settings=template_params(),
     threads: 1

@@ -102,7 +102,6 @@ def prepare_target(path: str | os.PathLike, side: str = "left", margin_mm: float
         For unreadable, empty or NaN files, wrong units or side, or a mesh that holds no pinna.
     """
     mesh = load_left_pinna(path, side)
-    warnings: list[str] = []
     mesh.remove_unreferenced_vertices()
     if segment:
         try:
@@ -110,6 +109,18 @@ def prepare_target(path: str | os.PathLike, side: str = "left", margin_mm: float
         except PpmError as exc:
             raise PpmError(f"{path}: {exc}") from exc
         mesh = crop_to_region(mesh, region)
+    return target_from_mesh(mesh, str(path))
+
+
+def target_from_mesh(mesh: trimesh.Trimesh, source: str) -> Target:
+    """A target from a pinna surface (mm, project frame): outliers removed, holes measured.
+
+    Raises
+    ------
+    PpmError
+        If fewer than 500 usable points remain.
+    """
+    warnings: list[str] = []
     keep = remove_outliers(mesh.vertices)
     if (~keep).any():
         warnings.append(f"{int((~keep).sum())} isolated outlier points removed")
@@ -120,7 +131,7 @@ def prepare_target(path: str | os.PathLike, side: str = "left", margin_mm: float
     normals = np.asarray(mesh.vertex_normals)
     points = np.asarray(mesh.vertices)[keep]
     if len(points) < 500:
-        raise PpmError(f"{path}: only {len(points)} usable pinna points; a scan of about 1 mm resolution is needed")
+        raise PpmError(f"{source}: only {len(points)} usable pinna points; a scan of about 1 mm resolution is needed")
     for message in warnings:
-        log.warning("%s: %s", path, message)
-    return Target(points, normals[keep], mesh, str(path), tuple(warnings))
+        log.warning("%s: %s", source, message)
+    return Target(points, normals[keep], mesh, source, tuple(warnings))

@@ -115,3 +115,33 @@ def render_range_sheet(model: PinnaModel, path: str | os.PathLike, columns: int 
         plotter.screenshot(str(tmp))
     plotter.close()
     return path
+
+
+def render_distance_map(mesh_vertices_mm: np.ndarray, faces: np.ndarray | None, distance_mm: np.ndarray,
+                        path: str | os.PathLike, title: str = "", size_px: tuple[int, int] = (1500, 750)) -> Path:
+    """PNG of a pinna coloured by distance with the paper's scale (<= 1 mm red, ~3.5 mm green,
+    >= 5 mm blue): lateral view (from +y) and a view from behind-above. `faces` None: points."""
+    pv = _pyvista()
+    if faces is None:
+        data = pv.PolyData(np.asarray(mesh_vertices_mm, np.float64))
+    else:
+        data = _polydata(pv, mesh_vertices_mm, faces)
+    data["distance_mm"] = np.asarray(distance_mm, dtype=np.float64)
+    plotter = pv.Plotter(off_screen=True, shape=(1, 2), window_size=size_px)
+    centre = np.asarray(mesh_vertices_mm).mean(axis=0)
+    for column, eye in enumerate(([0.0, 1.0, 0.0], [-0.6, 0.6, 0.5])):
+        plotter.subplot(0, column)
+        plotter.add_mesh(data, scalars="distance_mm", cmap="jet_r", clim=(1.0, 5.0), smooth_shading=True,
+                         point_size=4, render_points_as_spheres=faces is None,
+                         scalar_bar_args={"title": "distance (mm)"} if column == 1 else None,
+                         show_scalar_bar=column == 1)
+        plotter.camera_position = [tuple(centre + 260.0 * np.array(eye)), tuple(centre), (0.0, 0.0, 1.0)]
+        plotter.camera.parallel_projection = True
+        plotter.camera.parallel_scale = 0.6 * np.ptp(np.asarray(mesh_vertices_mm)[:, 2])
+        if column == 0 and title:
+            plotter.add_text(title, font_size=11)
+    path = Path(path)
+    with atomic_path(path) as tmp:
+        plotter.screenshot(str(tmp))
+    plotter.close()
+    return path

@@ -33,12 +33,13 @@ def template_params():
 
 
 def get_final_output():
-    """Everything `snakemake --cores 2` makes: PPM pictures, and LOO templates when data is configured."""
+    """Everything `snakemake --cores 2` makes: PPM pictures, and with a dataset the leave-one-subject-out
+    templates and the alignment of every subject."""
     out = [
         "results/ppm/default_ppm.png",
         "results/ppm/range_sheet.png",
         "results/ppm/default_ppm.blend",
         "results/ppm/default_parameters.csv",
     ]
-    out += [f"results/templates/without_{s}/template_left.ply" for s in SUBJECTS]
+    out += [f"results/{s}/align/summary.json" for s in SUBJECTS]
     return out

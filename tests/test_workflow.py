@@ -30,6 +30,7 @@ def test_dry_run_with_a_dataset_plans_one_template_per_subject(tmp_path, sonicom
     text = done.stdout + done.stderr
     for subject in ("P039", "P067", "P143"):
         assert f"results/templates/without_{subject}/template_left.ply" in text
+        assert f"results/{subject}/align/summary.json" in text
 
 
 def test_config_errors_stop_before_any_work(tmp_path):

@@ -63,22 +63,25 @@ def remove_outliers(points_mm: np.ndarray, neighbours: int = 8) -> np.ndarray:
 
 def hole_share(mesh: trimesh.Trimesh) -> float:
     """Estimated share of the surface missing to holes: the area that closing the inner boundary
-    loops (all but the longest, outer one) would add, relative to the whole."""
+    loops (all but the longest, outer one) would add, relative to the whole. Each hole's area is
+    the magnitude of its loop's vector area."""
+    import networkx as nx
+
     edges = mesh.edges_sorted[trimesh.grouping.group_rows(mesh.edges_sorted, require_count=1)]
     if len(edges) == 0:
         return 0.0
-    loops = trimesh.graph.connected_components(edges, min_len=3)
-    lengths = [np.linalg.norm(np.diff(mesh.vertices[np.r_[loop, loop[:1]]], axis=0), axis=1).sum()
-               for loop in loops]
-    order = np.argsort(lengths)[::-1]
-    missing = 0.0
-    for index in order[1:]:
-        ring = mesh.vertices[loops[index]]
-        centre = ring.mean(axis=0)
-        # area of the fan from the loop centre (loop vertices are unordered: use their convex spread)
-        radius = np.linalg.norm(ring - centre, axis=1).mean()
-        missing += np.pi * radius * radius
-    return float(missing / (missing + mesh.area))
+    loops = nx.cycle_basis(nx.from_edgelist(edges.tolist()))
+    if len(loops) < 2:
+        return 0.0
+    areas, lengths = [], []
+    for loop in loops:
+        ring = mesh.vertices[loop]
+        following = np.roll(ring, -1, axis=0)
+        areas.append(0.5 * np.linalg.norm(np.cross(ring, following).sum(axis=0)))
+        lengths.append(np.linalg.norm(following - ring, axis=1).sum())
+    outer = int(np.argmax(lengths))
+    missing = float(sum(a for i, a in enumerate(areas) if i != outer))
+    return missing / (missing + float(mesh.area))
 
 
 def prepare_target(path: str | os.PathLike, side: str = "left", margin_mm: float = 3.0,

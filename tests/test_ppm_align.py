@@ -1,0 +1,127 @@
+"""Automatic alignment of the PPM: pose conversions, synthetic scans with known truth, a real scan,
+outputs, and bad input (real bpy, real scans from ../shared/data)."""
+import json
+
+import numpy as np
+import pytest
+import trimesh
+
+from ppm.align import AlignSettings, align, prepare_target
+from ppm.align.pose import euler_zyx_deg, parent_pose_from_rigid, rotation_zyx
+from ppm.align.report import OUTPUT_NAMES, one_sided_distances_mm, write_alignment
+from ppm.align.surface import OneRingSurface
+from ppm.align.synthetic import synthetic_scan
+from ppm.errors import PpmError
+from ppm.parameters import PinnaParameters, parameter_specs
+
+
+def test_euler_zyx_round_trip():
+    rng = np.random.default_rng(1)
+    for _ in range(20):
+        angles = rng.uniform(-60, 60, 3)
+        np.testing.assert_allclose(euler_zyx_deg(rotation_zyx(angles)), angles, atol=1e-9)
+
+
+def test_rigid_transform_becomes_the_parent_pose(model):
+    """A rigid motion turned into parent-bone parameters moves the template exactly as the motion does."""
+    matrix = np.eye(4)
+    matrix[:3, :3] = rotation_zyx([6.0, -4.0, 9.0])
+    matrix[:3, 3] = [2.0, -3.0, 1.0]
+    params = PinnaParameters.from_dict(parent_pose_from_rigid(matrix, model.rig.parent_head_mm))
+    expected = trimesh.transform_points(model.template_vertices_mm, matrix)
+    np.testing.assert_allclose(model.evaluate(params), expected, atol=1e-3)
+
+
+def test_one_ring_closest_points_match_the_exact_query(model):
+    rng = np.random.default_rng(2)
+    mesh = model.mesh(PinnaParameters.default())
+    points = mesh.sample(2000, seed=3) + rng.normal(0, 0.3, (2000, 3))
+    _, _, fast = OneRingSurface(model.faces, len(mesh.vertices)).closest(mesh.vertices, points)
+    exact = trimesh.proximity.closest_point(mesh, points)[1]
+    assert np.all(fast >= exact - 1e-6)  # never closer than the true closest point
+    assert np.percentile(fast - exact, 99) < 1e-6  # mm: equal except in rare thin places
+    assert (fast - exact).max() < 1.0
+
+
+def test_synthetic_scans_are_fitted_and_parameters_recovered(model):
+    """Scans of the PPM with random in-range parameters, 0.2 mm noise, holes and 2 % outliers."""
+    rng = np.random.default_rng(7)
+    for _ in range(2):
+        target, truth = synthetic_scan(model, rng)
+        result = align(model, target)
+        distance = one_sided_distances_mm(target, result.vertices_mm, model.faces)
+        assert np.median(distance) < 0.3  # mm; the noise alone gives about 0.14
+        vertex_error = np.linalg.norm(result.vertices_mm - model.evaluate(truth), axis=1)
+        assert np.median(vertex_error) < 0.15 and np.percentile(vertex_error, 95) < 0.6
+        error = np.abs(result.parameters.to_vector() - truth.to_vector())
+        specs = parameter_specs()
+        parent_location = [e for s, e in zip(specs, error) if s.target == "Size-Bendy" and s.kind == "location"]
+        parent_rotation = [e for s, e in zip(specs, error) if s.target == "Size-Bendy" and s.kind == "rotation"]
+        assert max(parent_location) < 0.3 and max(parent_rotation) < 1.0  # mm, deg
+        assert result.seconds < 60
+
+
+@pytest.mark.slow
+def test_real_scan_outputs(model, sonicom, tmp_path):
+    """A real left pinna crop: a close fit, and every output written, readable and complete."""
+    target = prepare_target(sonicom / "P143" / "pinna_left_crop.ply")
+    result = align(model, target, AlignSettings())
+    summary = write_alignment(tmp_path, model, target, result)
+    assert summary["distance_target_to_ppm"]["median_mm"] < 0.5  # template saw this ear: optimistic
+    assert summary["warnings"] == []
+    assert PinnaParameters.read(tmp_path / OUTPUT_NAMES["parameters_csv"]) == result.parameters
+    assert PinnaParameters.read(tmp_path / OUTPUT_NAMES["parameters_json"]) == result.parameters
+    aligned = trimesh.load(tmp_path / OUTPUT_NAMES["aligned_ply"], process=False)
+    np.testing.assert_allclose(aligned.vertices, result.vertices_mm, atol=1e-4)
+    ply = (tmp_path / OUTPUT_NAMES["distances_ply"]).read_bytes()
+    assert b"property float quality" in ply[:400]
+    assert json.loads((tmp_path / OUTPUT_NAMES["summary"]).read_text())["seconds"] > 0
+    assert (tmp_path / OUTPUT_NAMES["blend"]).stat().st_size > 100_000
+    assert not [p for p in tmp_path.iterdir() if "partial" in p.name]
+
+
+def test_a_mirrored_right_ear_is_fitted_like_a_left_one(model, sonicom):
+    target = prepare_target(sonicom / "P039" / "pinna_right_crop.ply", side="right")
+    result = align(model, target)
+    assert np.median(one_sided_distances_mm(target, result.vertices_mm, model.faces)) < 0.5
+
+
+def test_bad_targets_are_refused_clearly(tmp_path, sonicom):
+    crop = trimesh.load(sonicom / "P039" / "pinna_left_crop.ply", process=False)
+    metres = tmp_path / "metres.ply"
+    trimesh.Trimesh(crop.vertices / 1000, crop.faces, process=False).export(metres)
+    with pytest.raises(PpmError, match="metres"):
+        prepare_target(metres)
+    with pytest.raises(PpmError, match="RIGHT ear"):
+        prepare_target(sonicom / "P039" / "pinna_right_crop.ply")
+    sphere = tmp_path / "not_an_ear.ply"
+    trimesh.creation.icosphere(subdivisions=4, radius=30.0).apply_translation([0, 80, 0]).export(sphere)
+    with pytest.raises(PpmError, match="not_an_ear.ply.*does not look like a pinna"):
+        prepare_target(sphere)
+    empty = tmp_path / "empty.stl"
+    empty.write_bytes(b"")
+    with pytest.raises(PpmError, match="empty"):
+        prepare_target(empty)
+    vertices = crop.vertices.copy()
+    vertices[5] = np.nan
+    nan = tmp_path / "nan.ply"
+    trimesh.Trimesh(vertices, crop.faces, process=False).export(nan)
+    with pytest.raises(PpmError, match="NaN"):
+        prepare_target(nan)
+
+
+def test_a_scan_with_half_its_surface_missing_is_flagged(tmp_path, sonicom):
+    crop = trimesh.load(sonicom / "P143" / "pinna_left_crop.ply", process=False)
+    # a lattice of 3.5 mm holes every 8 mm over the whole crop: about half of the surface is gone
+    grid = np.stack(np.meshgrid(np.arange(-50, 51, 8.0), np.arange(-55, 56, 8.0)), axis=-1).reshape(-1, 2)
+    xz = crop.triangles_center[:, [0, 2]]
+    near = np.min(np.linalg.norm(xz[:, None, :] - grid[None], axis=2), axis=1)
+    holey = trimesh.Trimesh(crop.vertices, crop.faces[near > 3.5], process=False)
+    holey.remove_unreferenced_vertices()
+    path = tmp_path / "holey.ply"
+    holey.export(path)
+    assert crop.area_faces[near <= 3.5].sum() / crop.area > 0.4
+    target = prepare_target(path)
+    assert any("missing to holes" in w for w in target.warnings)
+    complete = prepare_target(sonicom / "P143" / "pinna_left_crop.ply")
+    assert not any("missing to holes" in w for w in complete.warnings)

@@ -1,0 +1,25 @@
+"""Rule align_ppm: fit the PPM (leave-one-subject-out template) to a subject's left pinna scan."""
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(snakemake.scriptdir)))  # noqa: F821
+from _logging import configure_logging  # noqa: E402
+
+configure_logging(snakemake)  # noqa: F821
+
+import bpy  # noqa: E402,F401  (before anything that may load pymeshlab)
+
+from ppm.align import align, prepare_target  # noqa: E402
+from ppm.align.report import one_sided_distances_mm, write_alignment  # noqa: E402
+from ppm.model import PinnaModel  # noqa: E402
+from ppm.render import render_distance_map  # noqa: E402
+
+settings = snakemake.params.settings  # noqa: F821
+out_dir = Path(snakemake.output.summary).parent  # noqa: F821
+model = PinnaModel.from_template(Path(snakemake.input.template).parent)  # noqa: F821
+target = prepare_target(snakemake.input.scan, side="left", margin_mm=settings["target_margin_mm"])  # noqa: F821
+result = align(model, target)
+write_alignment(out_dir, model, target, result, extra={"template": snakemake.input.template})  # noqa: F821
+distance = one_sided_distances_mm(target, result.vertices_mm, model.faces)
+render_distance_map(target.points_mm, None, distance, snakemake.output.picture,  # noqa: F821
+                    f"{snakemake.wildcards.subject}: scan -> aligned PPM")  # noqa: F821

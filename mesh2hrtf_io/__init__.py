@@ -1,5 +1,8 @@
-"""Mesh2HRTF project export, NumCalc runs and SOFA collection (metres inside projects).
+"""Mesh2HRTF project export (NumCalc input) from head meshes in millimetres; metres inside projects."""
+from .checks import check_mesh, mesh_problems
+from .errors import Mesh2HrtfIoError
+from .grids import EvaluationGrid, grid_from_sofa, sagittal_grid, sphere_grid
+from .project import ProjectLayout, write_project
 
-Not built yet: see the open issue "Mesh2HRTF project export and HRTF solving".
-"""
-__all__: list[str] = []
+__all__ = ["EvaluationGrid", "Mesh2HrtfIoError", "ProjectLayout", "check_mesh", "grid_from_sofa", "mesh_problems",
+           "sagittal_grid", "sphere_grid", "write_project"]

@@ -11,7 +11,6 @@ import csv
 import dataclasses
 import io
 import json
-import math
 import os
 from functools import lru_cache
 from importlib import resources
@@ -269,8 +268,3 @@ def random_parameters(rng: np.random.Generator, fraction: float = 1.0) -> PinnaP
     low = default + fraction * (lower - default)
     high = default + fraction * (upper - default)
     return PinnaParameters(rng.uniform(low, high))
-
-
-def degrees_to_radians(angles_deg: np.ndarray) -> np.ndarray:
-    """Degrees to radians (the only place rotations leave degrees)."""
-    return np.asarray(angles_deg, dtype=np.float64) * (math.pi / 180.0)

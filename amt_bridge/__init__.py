@@ -1,5 +1,9 @@
-"""Python reimplementation of AMT's baumgartner2014 sagittal-plane localisation model.
+"""baumgartner2014 in Python: sagittal-plane localisation (quadrant errors, polar errors) predicted
+from HRTFs, as AMT 0.9.10 computes it, on SOFA files directly."""
+from .errors import AmtBridgeError
+from .hrtf_set import HrirSet, read_hrtf_set
+from .model import LocalisationModel, PlanePrediction, Prediction, calibrate_sensitivity, predict
+from .settings import ModelSettings, default_settings
 
-Not built yet: see the open issue "baumgartner2014 in Python".
-"""
-__all__: list[str] = []
+__all__ = ["AmtBridgeError", "HrirSet", "LocalisationModel", "ModelSettings", "PlanePrediction", "Prediction",
+           "calibrate_sensitivity", "default_settings", "predict", "read_hrtf_set"]

@@ -53,6 +53,13 @@ def _fan(n: int, offset: int = 0) -> np.ndarray:
     return np.stack([np.full(n - 2, offset), offset + np.arange(1, n - 1), offset + np.arange(2, n)], axis=1)
 
 
+def ring_grid(name: str, points_m: np.ndarray) -> EvaluationGrid:
+    """A grid of points along one ring (e.g. a horizontal or sagittal circle), fan-triangulated; a
+    convex hull cannot triangulate points that all lie in one plane."""
+    points_m = np.asarray(points_m, dtype=np.float64)
+    return EvaluationGrid(name, points_m, _fan(len(points_m)))
+
+
 def sphere_grid(name: str, points_m: np.ndarray) -> EvaluationGrid:
     """A grid of points around the head triangulated by their convex hull (all must lie on it)."""
     points_m = np.asarray(points_m, dtype=np.float64)

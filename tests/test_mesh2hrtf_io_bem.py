@@ -21,19 +21,24 @@ def test_analytic_limits():
     np.testing.assert_allclose(high_db[1:6], high_db[5:0:-1], atol=1e-9)  # front-back symmetry about the ear axis
 
 
-def test_embedded_solver_matches_the_sphere_at_low_frequency():
-    """A coarse sphere (162 vertices) is enough below 1 kHz: within 1 dB of the series."""
-    sphere = trimesh.creation.icosphere(subdivisions=2, radius=RADIUS_M)
+def test_embedded_solver_matches_the_sphere_up_to_8_khz():
+    """A 642-vertex sphere (1280 triangles, ~11 mm edges) with one vibrating element: within 1 dB of the
+    series up to 8 kHz on a 1.2 m horizontal ring. The analytic ear is put at the element's centroid
+    direction; a few millimetres off it move the contralateral bright spot by several dB at 8 kHz."""
+    sphere = trimesh.creation.icosphere(subdivisions=3, radius=RADIUS_M)
     distance = np.linalg.norm(sphere.triangles_center - [0, RADIUS_M, 0], axis=1)
-    ear = np.flatnonzero(distance <= distance.min() + 1e-12)
-    for frequency in (300.0, 800.0):
+    ear = np.array([int(np.argmin(distance))])
+    ear_direction = sphere.triangles_center[ear[0]] / np.linalg.norm(sphere.triangles_center[ear[0]])
+    for frequency in (500.0, 2000.0, 8000.0):
         pressure = solve_pressure(sphere.vertices, sphere.faces, ear, RING, frequency, 343.0, 1.2)
         hrtf = pressure / free_field_reference(RING, frequency, sphere.area_faces[ear].sum(), 343.0, 1.2)
-        analytic = rigid_sphere_hrtf(frequency, RADIUS_M, RING, [0, 1, 0], 343.0)
+        analytic = rigid_sphere_hrtf(frequency, RADIUS_M, RING, ear_direction, 343.0)
         error_db = np.abs(20 * np.log10(np.abs(hrtf)) - 20 * np.log10(np.abs(analytic)))
-        assert error_db.max() < 1.0
+        assert error_db.max() < 1.0, f"{frequency} Hz: {error_db.max():.2f} dB"
         # NumCalc's convention e^{-iωt}: the solver's HRTF is the conjugate of the e^{+iωt} series
-        assert np.abs(np.angle(hrtf / np.conj(analytic), deg=True)).max() < 10.0
+        # (phase within 10° to 2 kHz; 20° at 8 kHz, where the elements are a quarter wavelength)
+        phase_limit = 10.0 if frequency <= 2000 else 20.0
+        assert np.abs(np.angle(hrtf / np.conj(analytic), deg=True)).max() < phase_limit
 
 
 def test_cost_estimate_grows_with_the_square_of_the_mesh():

@@ -1,0 +1,5 @@
+"""Errors of the localisation model: bad HRTF files, grids without a usable sagittal plane."""
+
+
+class AmtBridgeError(ValueError):
+    """Input that the localisation model cannot use; the message names the file or value and the fix."""

@@ -1,0 +1,124 @@
+"""Binaural head-related impulse responses on a grid of directions, read from SOFA files.
+
+Frame: SOFA spherical source positions (azimuth 0 = front, +90 = left; elevation +90 = up; degrees).
+Receiver 0 is the LEFT ear, receiver 1 the right ear, as in SOFA's SimpleFreeFieldHRIR.
+"""
+from __future__ import annotations
+
+import dataclasses
+import os
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from .errors import AmtBridgeError
+
+PRE_DELAY_S = 0.001  # HRTF -> HRIR: responses are shifted by this delay so that leads stay causal
+
+
+@dataclasses.dataclass(frozen=True)
+class HrirSet:
+    """Impulse responses ``irs`` (M directions, 2 ears [left, right], N samples) at ``sampling_rate_hz``,
+    with the SOFA azimuth/elevation (degrees) of every direction."""
+
+    irs: np.ndarray
+    sampling_rate_hz: float
+    azimuth_deg: np.ndarray
+    elevation_deg: np.ndarray
+    source: str = "<memory>"
+
+    def __post_init__(self):
+        irs = np.asarray(self.irs, dtype=np.float64)
+        if irs.ndim != 3:
+            raise AmtBridgeError(f"{self.source}: impulse responses must be (directions, ears, samples), "
+                                 f"got shape {irs.shape}")
+        if irs.shape[1] != 2:
+            raise AmtBridgeError(f"{self.source}: the model needs 2 ears (left, right), the data hold "
+                                 f"{irs.shape[1]} receiver(s); a mono set cannot be weighted binaurally")
+        if irs.shape[0] < 4 or irs.shape[2] < 16:
+            raise AmtBridgeError(f"{self.source}: too few directions ({irs.shape[0]}) or samples ({irs.shape[2]})")
+        if not np.isfinite(irs).all():
+            raise AmtBridgeError(f"{self.source}: the impulse responses hold NaN or inf values")
+        if not np.any(irs):
+            raise AmtBridgeError(f"{self.source}: all impulse responses are zero")
+        if not (np.isfinite(self.sampling_rate_hz) and self.sampling_rate_hz > 0):
+            raise AmtBridgeError(f"{self.source}: invalid sampling rate {self.sampling_rate_hz}")
+        azimuth = np.asarray(self.azimuth_deg, dtype=np.float64).ravel()
+        elevation = np.asarray(self.elevation_deg, dtype=np.float64).ravel()
+        if azimuth.shape != (irs.shape[0],) or elevation.shape != (irs.shape[0],):
+            raise AmtBridgeError(f"{self.source}: {irs.shape[0]} responses but {azimuth.size} positions")
+        if not (np.isfinite(azimuth).all() and np.isfinite(elevation).all()):
+            raise AmtBridgeError(f"{self.source}: source positions hold NaN or inf values")
+        object.__setattr__(self, "irs", irs)
+        object.__setattr__(self, "azimuth_deg", azimuth)
+        object.__setattr__(self, "elevation_deg", elevation)
+        object.__setattr__(self, "sampling_rate_hz", float(self.sampling_rate_hz))
+
+
+def _cartesian_to_spherical_deg(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    azimuth = np.degrees(np.arctan2(points[:, 1], points[:, 0]))
+    elevation = np.degrees(np.arctan2(points[:, 2], np.hypot(points[:, 0], points[:, 1])))
+    return azimuth, elevation
+
+
+def hrtf_to_hrir(spectra: np.ndarray, frequencies_hz: np.ndarray, source: str) -> tuple[np.ndarray, float]:
+    """Impulse responses from one-sided spectra (..., K) on the grid f_k = k Δf (k = 1..K or 0..K),
+    as Mesh2HRTF writes them (without a 0 Hz bin, it is set to the magnitude of the lowest bin, phase 0).
+    The highest frequency is taken as Nyquist, so the sampling rate is 2 f_K. Responses are shifted by
+    ``PRE_DELAY_S`` so that the head's lead (up to ~0.7 ms) does not wrap around."""
+    frequencies = np.asarray(frequencies_hz, dtype=np.float64).ravel()
+    if frequencies.size < 8:
+        raise AmtBridgeError(f"{source}: {frequencies.size} frequencies are too few for impulse responses")
+    dc = None
+    if frequencies[0] == 0:
+        dc, spectra, frequencies = spectra[..., :1].real, spectra[..., 1:], frequencies[1:]
+    step = frequencies[0]
+    if not np.allclose(frequencies, step * np.arange(1, frequencies.size + 1), rtol=0, atol=1e-6 * step):
+        raise AmtBridgeError(f"{source}: frequencies must be the multiples k·Δf (k = 1, 2, ...) of one step to "
+                             "form impulse responses; recompute the HRTFs on such a grid")
+    if dc is None:
+        dc = np.abs(spectra[..., :1])
+    full = np.concatenate([dc, spectra], axis=-1)
+    n_samples = 2 * (full.shape[-1] - 1)
+    sampling_rate = 2.0 * frequencies[-1]
+    irs = np.fft.irfft(full, n=n_samples, axis=-1)
+    return np.roll(irs, int(round(PRE_DELAY_S * sampling_rate)), axis=-1), sampling_rate
+
+
+def read_hrtf_set(path: str | os.PathLike) -> HrirSet:
+    """Read a SimpleFreeFieldHRIR or SimpleFreeFieldHRTF SOFA file (2 receivers: left, right)."""
+    import sofar  # noqa: PLC0415
+
+    path = Path(path)
+    if not path.is_file():
+        raise AmtBridgeError(f"{path}: no such file")
+    if path.stat().st_size == 0:
+        raise AmtBridgeError(f"{path}: the file is empty")
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            sofa = sofar.read_sofa(str(path), verify=False, verbose=False)
+    except Exception as exc:  # sofar/netCDF raise many types for broken files
+        raise AmtBridgeError(f"{path}: not a readable SOFA file ({type(exc).__name__}: {exc}); "
+                             "give a SimpleFreeFieldHRIR or SimpleFreeFieldHRTF file") from exc
+    convention = str(getattr(sofa, "GLOBAL_SOFAConventions", ""))
+    positions = np.atleast_2d(np.asarray(sofa.SourcePosition, dtype=np.float64))
+    if str(getattr(sofa, "SourcePosition_Type", "spherical")).lower().startswith("cart"):
+        azimuth, elevation = _cartesian_to_spherical_deg(positions)
+    else:
+        azimuth, elevation = positions[:, 0], positions[:, 1]
+    if convention == "SimpleFreeFieldHRIR" or hasattr(sofa, "Data_IR"):
+        irs = np.asarray(sofa.Data_IR, dtype=np.float64)
+        rate = float(np.ravel(sofa.Data_SamplingRate)[0])
+    elif convention == "SimpleFreeFieldHRTF" or hasattr(sofa, "Data_Real"):
+        spectra = np.asarray(sofa.Data_Real, dtype=np.float64) + 1j * np.asarray(sofa.Data_Imag, dtype=np.float64)
+        irs, rate = hrtf_to_hrir(spectra, np.asarray(sofa.N, dtype=np.float64), str(path))
+    else:
+        raise AmtBridgeError(f"{path}: convention {convention!r} holds no HRIRs or HRTFs; "
+                             "give a SimpleFreeFieldHRIR or SimpleFreeFieldHRTF file")
+    if irs.ndim == 2:
+        irs = irs[:, None, :]
+    if len(azimuth) == 1 and irs.shape[0] > 1:
+        azimuth, elevation = np.repeat(azimuth, irs.shape[0]), np.repeat(elevation, irs.shape[0])
+    return HrirSet(irs, rate, azimuth, elevation, source=str(path))

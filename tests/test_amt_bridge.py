@@ -189,3 +189,16 @@ def test_cli_compare_writes_json_and_figures(tmp_path):
     assert (tmp_path / "bars.png").stat().st_size > 1000
     assert sorted(p.name for p in (tmp_path / "matrices").iterdir()) == ["axd2_matrix.png", "reference_matrix.png"]
     assert b2014_main(["predict", str(tmp_path / "missing.sofa"), str(AXD1)]) == 2
+
+
+def test_experimental_targets_interpolate_per_target_values(axd1):
+    plane = LocalisationModel(axd1, axd1, [0.0]).predict().planes[0]
+    same = performance(plane.p, plane.tang, plane.rang, experimental_polar_deg=plane.tang)
+    assert same.qe_percent == pytest.approx(plane.performance.qe_percent, abs=1e-9)
+    assert same.pe_deg == pytest.approx(plane.performance.pe_deg, abs=1e-9)
+    # a target counted twice weighs twice; a target halfway between two gets their mean
+    doubled = performance(plane.p, plane.tang, plane.rang, experimental_polar_deg=[plane.tang[0]] * 2 + [plane.tang[1]])
+    expected = (2 * plane.performance.qe_per_target[0] + plane.performance.qe_per_target[1]) / 3 * 100
+    assert doubled.qe_percent == pytest.approx(expected, abs=1e-9)
+    middle = performance(plane.p, plane.tang, plane.rang, experimental_polar_deg=[(plane.tang[2] + plane.tang[3]) / 2])
+    assert middle.pe_deg == pytest.approx(plane.performance.pe_per_target[2:4].mean(), abs=1e-9)

@@ -113,6 +113,9 @@ def read_hrtf_set(path: str | os.PathLike) -> HrirSet:
         rate = float(np.ravel(sofa.Data_SamplingRate)[0])
     elif convention == "SimpleFreeFieldHRTF" or hasattr(sofa, "Data_Real"):
         spectra = np.asarray(sofa.Data_Real, dtype=np.float64) + 1j * np.asarray(sofa.Data_Imag, dtype=np.float64)
+        application = str(getattr(sofa, "GLOBAL_ApplicationName", ""))
+        if "Mesh2HRTF" in application or "mesh2hrtf_io" in application:
+            spectra = np.conj(spectra)  # NumCalc's e^{-iωt} phase convention -> the DFT's
         irs, rate = hrtf_to_hrir(spectra, np.asarray(sofa.N, dtype=np.float64), str(path))
     else:
         raise AmtBridgeError(f"{path}: convention {convention!r} holds no HRIRs or HRTFs; "

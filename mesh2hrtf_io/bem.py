@@ -22,6 +22,8 @@ from .constants import EAR_VELOCITY_M_S
 from .errors import Mesh2HrtfIoError
 
 log = logging.getLogger(__name__)
+SECONDS_PER_ENTRY = 2.2e-6  # dense operator assembly, numba, 2 cores (refined by benchmarks/solve_cost.py)
+EAR_SEGMENT = 1  # domain index of the vibrating (ear) elements
 
 
 def _bempp():
@@ -30,6 +32,7 @@ def _bempp():
     except ImportError as exc:  # pragma: no cover - depends on the installation
         raise Mesh2HrtfIoError("the embedded solver needs bempp-cl: pip install bempp-cl") from exc
     bempp.DEFAULT_DEVICE_INTERFACE = "numba"
+    logging.getLogger("bempp").setLevel(logging.WARNING)  # its per-operator timing lines drown the progress
     return bempp
 
 
@@ -43,12 +46,13 @@ class CostEstimate:
     seconds_per_frequency: float
 
 
-def estimate_cost(n_vertices: int, n_elements: int, n_points: int) -> CostEstimate:
-    """Dense Burton–Miller cost model: three P1 operators and two DP0->P1 operators of complex128,
-    assembled with numba on a 2-core machine. The time constant is measured: a 2562-vertex sphere
-    (5120 triangles) took about 100 s per frequency (46 million operator entries)."""
-    memory = 16.0 * (3 * n_vertices**2 + 2 * n_vertices * n_elements + n_points * (n_vertices + n_elements)) / 1e9
-    seconds = 2.2e-6 * (3 * n_vertices**2 + 2 * n_vertices * n_elements) + 4e-8 * n_points * (n_vertices + n_elements)
+def estimate_cost(n_vertices: int, n_elements: int, n_points: int, n_ear_elements: int = 1) -> CostEstimate:
+    """Dense Burton–Miller cost model: two dense P1 operators (double layer, hypersingular) of complex128,
+    the right-hand side only on the ear elements, assembled with numba on a 2-core machine, plus the
+    evaluation at ``n_points``. Time constant measured on spheres (see benchmarks/solve_cost.py)."""
+    dense = 2 * n_vertices**2 + 2 * n_vertices * n_ear_elements
+    memory = 16.0 * (dense + n_points * (n_vertices + n_ear_elements)) / 1e9
+    seconds = SECONDS_PER_ENTRY * dense + 4e-8 * n_points * n_vertices + 2.0
     return CostEstimate(n_vertices, n_elements, round(memory, 3), round(seconds, 2))
 
 
@@ -73,13 +77,17 @@ def solve_pressure(vertices_m: np.ndarray, faces: np.ndarray, ear_elements: np.n
     from bempp_cl.api.operators.potential import helmholtz as helmholtz_potential  # noqa: PLC0415
 
     k = 2.0 * np.pi * frequency_hz / speed_of_sound_m_s
-    grid = bempp.Grid(np.asarray(vertices_m, np.float64).T.copy(), np.asarray(faces, np.uint32).T.copy())
+    # the vibrating elements form segment 1; the prescribed velocity lives only there, so the right-hand
+    # side operators are (vertices x ear elements) instead of dense (vertices x elements)
+    segments = np.zeros(len(faces), dtype=np.uint32)
+    segments[np.asarray(ear_elements)] = EAR_SEGMENT
+    grid = bempp.Grid(np.asarray(vertices_m, np.float64).T.copy(), np.asarray(faces, np.uint32).T.copy(),
+                      domain_indices=segments)
     p1 = bempp.function_space(grid, "P", 1)
-    dp0 = bempp.function_space(grid, "DP", 0)
+    dp0 = bempp.function_space(grid, "DP", 0, segments=[EAR_SEGMENT])
     # Euler's equation with e^{-iωt}: dp/dn = iωρ v_n on the vibrating elements, 0 elsewhere (rigid)
-    velocity = np.zeros(grid.number_of_elements, dtype=np.complex128)
-    velocity[np.asarray(ear_elements)] = velocity_m_s
-    neumann = bempp.GridFunction(dp0, coefficients=1j * 2.0 * np.pi * frequency_hz * density_kg_m3 * velocity)
+    neumann = bempp.GridFunction(dp0, coefficients=np.full(dp0.global_dof_count, 1j * 2.0 * np.pi * frequency_hz
+                                                           * density_kg_m3 * velocity_m_s, dtype=np.complex128))
     coupling = 1j / k  # Burton-Miller coupling for outgoing e^{ikr} waves
     lhs = (0.5 * sparse.identity(p1, p1, p1) - helmholtz.double_layer(p1, p1, p1, k)
            + coupling * helmholtz.hypersingular(p1, p1, p1, k))

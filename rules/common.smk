@@ -25,11 +25,70 @@ if DATA_ROOT is not None and not SUBJECTS:
 
 wildcard_constraints:
     subject="|".join(SUBJECTS) if SUBJECTS else "[A-Za-z0-9_-]+",
+    variant="|".join(("reference",)),
+    source="[12]",
+    step="[0-9]+",
 
 
 def template_params():
     """Settings of the template build, from config/template."""
     return config["template"]
+
+
+HRTF_VARIANTS = ("reference",)
+
+
+def hrtf_frequencies():
+    """Frequencies (Hz) of the HRTF projects: min, min + step, ..., max from config hrtf.frequencies_hz."""
+    from mesh2hrtf_io.cli import frequency_list
+
+    f = config["hrtf"]["frequencies_hz"]
+    return frequency_list(f["min"], f["max"], f["step"])
+
+
+def hrtf_head_mesh(wildcards):
+    """The head mesh (mm) whose HRTFs the variant stands for."""
+    if wildcards.variant == "reference":
+        if DATA_ROOT is None:
+            raise ValueError("HRTFs of reference heads need config key data_root (a dataset with head meshes)")
+        return str(DATA_ROOT / wildcards.subject / config["hrtf"]["reference_head"])
+    raise ValueError(f"unknown HRTF variant {wildcards.variant!r}; known: {HRTF_VARIANTS}")
+
+
+def hrtf_sources():
+    """Source folders of a project: source_1 (left ear) and, for both ears, source_2 (right ear)."""
+    return ["1", "2"] if config["hrtf"]["ears"] == "both" else ["1"]
+
+
+def solved_steps(wildcards):
+    """What collect_sofa waits for: every NumCalc step job, or the one embedded-solver job."""
+    base = f"results/{wildcards.subject}/hrtf/{wildcards.variant}/steps"
+    if config["hrtf"]["solver"] == "embedded":
+        return [f"{base}/embedded.json"]
+    return [f"{base}/source_{s}/step_{k}.json" for s in hrtf_sources() for k in range(1, len(hrtf_frequencies()) + 1)]
+
+
+def numcalc_step_mem_mb(wildcards, input, attempt):
+    """Memory of one NumCalc step from `NumCalc -estimate_ram` (Memory.txt), +50 % per retry."""
+    from mesh2hrtf_io.numcalc import NumCalcError, estimate_memory, find_numcalc
+
+    source = Path(input.project) / "NumCalc" / f"source_{wildcards.source}"
+    try:
+        estimates = estimate_memory(find_numcalc(config["hrtf"]["numcalc"] or None), source)
+        gigabytes = next(e.memory_gb for e in estimates if e.step == int(wildcards.step))
+    except (NumCalcError, StopIteration):
+        gigabytes = 2.0
+    return int(1024 * max(gigabytes, 0.25) * 1.2 * (1 + 0.5 * (attempt - 1)))
+
+
+def embedded_mem_mb(wildcards, input):
+    """Memory of the embedded solver from its dense-operator model."""
+    from mesh2hrtf_io.bem import estimate_cost
+    from mesh2hrtf_io.project_reader import read_project
+
+    project = read_project(input.project)
+    cost = estimate_cost(len(project.vertices_m), len(project.faces), len(project.evaluation_points_m))
+    return int(1024 * cost.memory_gb_per_frequency * 1.3) + 1500
 
 
 def get_final_output():
@@ -42,4 +101,6 @@ def get_final_output():
         "results/ppm/default_parameters.csv",
     ]
     out += [f"results/{s}/align/summary.json" for s in SUBJECTS]
+    if config["hrtf"]["enabled"]:
+        out += [f"results/{s}/hrtf/reference/HRIR_SagittalPlanes.sofa" for s in SUBJECTS]
     return out

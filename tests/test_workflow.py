@@ -60,3 +60,46 @@ def test_default_run_makes_the_ppm_pictures_blend_and_parameters(tmp_path):
     # a second run has nothing to do
     again = _run(["--cores", "2", "-n"], work)
     assert "Nothing to be done" in again.stdout + again.stderr
+
+
+def _hrtf_config(work: Path, data_root: Path, solver: str) -> Path:
+    import yaml
+
+    config = yaml.safe_load((work / "config" / "config.yaml").read_text())
+    config["data_root"] = str(data_root)
+    config["hrtf"].update(solver=solver, frequencies_hz={"min": 250.0, "max": 500.0, "step": 250.0},
+                          polar_step_deg=10.0)
+    path = work / "config" / "test_hrtf.yaml"
+    path.write_text(yaml.safe_dump(config))
+    return path
+
+
+def test_hrtf_rules_export_solve_and_collect_a_sphere_head(tmp_path):
+    """export_project -> solve_embedded -> collect_sofa on a 162-vertex sphere 'head' (2 frequencies, both
+    ears); with NumCalc as solver the DAG has one job per ear and frequency step."""
+    import sofar
+
+    work = _copy_workflow(tmp_path)
+    subject = tmp_path / "data" / "S1"
+    subject.mkdir(parents=True)
+    head = trimesh.creation.icosphere(subdivisions=2, radius=87.5)
+    head.export(subject / "head_graded_left.ply")
+    head.export(subject / "pinna_left_crop.ply")  # makes S1 a subject; alignment is not requested here
+    target = "results/S1/hrtf/reference/HRIR_SagittalPlanes.sofa"
+    planned = _run([target, "-n", "--cores", "2", "--configfile",
+                    str(_hrtf_config(work, tmp_path / "data", "numcalc"))], work)
+    assert planned.returncode == 0, planned.stderr[-3000:]
+    text = planned.stdout + planned.stderr
+    for source in (1, 2):
+        for step in (1, 2):
+            assert f"results/S1/hrtf/reference/steps/source_{source}/step_{step}.json" in text
+    done = _run([target, "--cores", "2", "--configfile", str(_hrtf_config(work, tmp_path / "data", "embedded"))],
+                work, timeout=900)
+    assert done.returncode == 0, done.stderr[-3000:]
+    hrir = sofar.read_sofa(str(work / target), verify=True)
+    assert hrir.GLOBAL_SOFAConventions == "SimpleFreeFieldHRIR" and hrir.Data_IR.shape[1:] == (2, 4)
+    hrtf = sofar.read_sofa(str(work / "results/S1/hrtf/reference/HRTF_SagittalPlanes.sofa"), verify=True)
+    assert hrtf.Data_Real.shape == (108, 2, 2)  # 3 planes x 36 polar angles, 2 ears, 2 frequencies
+    assert (work / "logs/hrtf/solve_embedded/S1_reference.log").is_file()
+    again = _run([target, "-n", "--cores", "2", "--configfile", str(work / "config" / "test_hrtf.yaml")], work)
+    assert "Nothing to be done" in again.stdout + again.stderr

@@ -1,0 +1,104 @@
+"""Command line: ``m2h export | solve | collect | cost`` for Mesh2HRTF projects."""
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from ppm.errors import PpmError
+
+from .errors import Mesh2HrtfIoError
+
+
+def frequency_list(minimum_hz: float, maximum_hz: float, step_hz: float) -> np.ndarray:
+    """minimum, minimum + step, ..., up to maximum (Hz); for HRIRs use minimum = step."""
+    if not 0 < minimum_hz <= maximum_hz or step_hz <= 0:
+        raise Mesh2HrtfIoError(f"frequencies need 0 < min <= max and step > 0, got {minimum_hz}, {maximum_hz}, {step_hz}")
+    return minimum_hz + step_hz * np.arange(int(np.floor((maximum_hz - minimum_hz) / step_hz + 1e-9)) + 1)
+
+
+def _export(args) -> dict:
+    import trimesh  # noqa: PLC0415
+
+    from stitching.ear_canal import ear_canal_elements  # noqa: PLC0415
+
+    from .grids import grid_from_sofa, sagittal_grid  # noqa: PLC0415
+    from .project import write_project  # noqa: PLC0415
+
+    if not args.head.is_file():
+        raise Mesh2HrtfIoError(f"{args.head}: no such mesh file")
+    head = trimesh.load(args.head, process=False, force="mesh")
+    sides = {"both": ("left", "right"), "left": ("left",), "right": ("right",)}[args.ears]
+    ears = {side: ear_canal_elements(head, side, source=str(args.head)) for side in sides}
+    grids = [sagittal_grid(polar_step_deg=args.polar_step)] + [grid_from_sofa(path) for path in args.grid_sofa]
+    frequencies = frequency_list(args.fmin or args.fstep, args.fmax, args.fstep)
+    layout = write_project(args.project, head.vertices, head.faces, ears, grids, frequencies,
+                           source_type={"both": "Both ears", "left": "Left ear", "right": "Right ear"}[args.ears],
+                           title=args.head.stem, compute_hrirs=args.hrirs)
+    return {"project": str(args.project), "elements": layout.n_object_elements, "ear_ranges": layout.ear_ranges,
+            "frequencies": len(frequencies), "grids": [g.name for g in grids]}
+
+
+def _solve(args) -> dict:
+    if args.solver == "embedded":
+        from .embedded import solve_project_embedded  # noqa: PLC0415
+
+        return solve_project_embedded(args.project, args.steps)
+    from .numcalc import solve_project_numcalc  # noqa: PLC0415
+
+    return solve_project_numcalc(args.project, args.numcalc, args.steps)
+
+
+def _collect(args) -> dict:
+    from .sofa_out import collect_sofa  # noqa: PLC0415
+
+    return {"files": [str(p) for p in collect_sofa(args.project, args.output)]}
+
+
+def _cost(args) -> dict:
+    from .cost import project_cost  # noqa: PLC0415
+
+    return project_cost(args.project, args.solver, args.numcalc).as_dict()
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="m2h", description="Mesh2HRTF projects: export, solve, collect SOFA, cost")
+    sub = parser.add_subparsers(dest="command", required=True)
+    export = sub.add_parser("export", help="write a project from a closed head mesh in millimetres")
+    export.add_argument("head", type=Path)
+    export.add_argument("project", type=Path)
+    export.add_argument("--ears", choices=["both", "left", "right"], default="both")
+    export.add_argument("--fmin", type=float, default=None, help="lowest frequency (Hz; default = step)")
+    export.add_argument("--fmax", type=float, default=18000.0)
+    export.add_argument("--fstep", type=float, default=100.0)
+    export.add_argument("--polar-step", type=float, default=2.5, help="sagittal-plane grid step (deg)")
+    export.add_argument("--grid-sofa", type=Path, nargs="*", default=[], help="extra grids from SOFA source positions")
+    export.add_argument("--hrirs", action="store_true", help="ask for HRIR SOFA files too")
+    for name, helptext in (("solve", "solve the missing frequency steps"), ("cost", "predict CPU-hours and RAM")):
+        command = sub.add_parser(name, help=helptext)
+        command.add_argument("project", type=Path)
+        command.add_argument("--solver", choices=["embedded", "numcalc"], default="embedded")
+        command.add_argument("--numcalc", default=None, help="NumCalc binary (default: PATH)")
+        if name == "solve":
+            command.add_argument("--steps", type=int, nargs="*", default=None, help="1-based steps (default: all)")
+    collect = sub.add_parser("collect", help="write HRTF/HRIR SOFA files of a solved project")
+    collect.add_argument("project", type=Path)
+    collect.add_argument("--output", type=Path, default=None)
+    args = parser.parse_args(argv)
+    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(message)s")
+    handlers = {"export": _export, "solve": _solve, "collect": _collect, "cost": _cost}
+    try:
+        result = handlers[args.command](args)
+    except (Mesh2HrtfIoError, PpmError) as exc:
+        print(f"m2h: error: {exc}", file=sys.stderr)
+        return 2
+    sys.stdout.write(json.dumps(result, indent=2, default=str) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,68 @@
+"""Cost of solving a project: elements, frequencies, predicted CPU-hours and peak memory.
+
+Embedded solver: the dense Burton–Miller model of :func:`mesh2hrtf_io.bem.estimate_cost`.
+NumCalc: memory per step from ``NumCalc -estimate_ram`` when a binary is available; time from a
+multilevel-FMM model, t = a · NE · (1 + (f / f_ref)^2) seconds per step and ear, whose constant was
+measured on this machine (benchmarks/solve_cost.py prints measured against predicted).
+"""
+from __future__ import annotations
+
+import dataclasses
+import os
+from pathlib import Path
+
+import numpy as np
+
+from .bem import estimate_cost
+from .project_reader import read_project
+
+NUMCALC_SECONDS_PER_ELEMENT = 2.0e-3   # at low frequency, per step and ear (measured, 2-core VM)
+NUMCALC_REFERENCE_FREQUENCY_HZ = 8000.0  # above it, iterations and near-field work grow with f^2
+
+
+@dataclasses.dataclass(frozen=True)
+class ProjectCost:
+    """Predicted cost of a whole project (all sources and steps)."""
+
+    n_elements: int
+    n_vertices: int
+    n_evaluation_points: int
+    n_sources: int
+    n_frequencies: int
+    solver: str
+    cpu_hours: float
+    peak_memory_gb: float
+    memory_source: str
+
+    def as_dict(self) -> dict:
+        return dataclasses.asdict(self)
+
+
+def numcalc_seconds(n_elements: int, frequency_hz: float) -> float:
+    """Predicted NumCalc time (s) of one step of one ear."""
+    return NUMCALC_SECONDS_PER_ELEMENT * n_elements * (1 + (frequency_hz / NUMCALC_REFERENCE_FREQUENCY_HZ) ** 2)
+
+
+def project_cost(folder: str | os.PathLike, solver: str = "embedded", numcalc: str | os.PathLike | None = None
+                 ) -> ProjectCost:
+    """Predict CPU-hours and peak RAM of solving the project at ``folder`` with ``solver``."""
+    project = read_project(folder)
+    n_points = len(project.evaluation_points_m)
+    n_elements, n_vertices = len(project.faces), len(project.vertices_m)
+    n_sources, frequencies = len(project.sources), project.frequencies_hz
+    if solver == "embedded":
+        cost = estimate_cost(n_vertices, n_elements, n_points)
+        seconds = cost.seconds_per_frequency * len(frequencies) * n_sources
+        return ProjectCost(n_elements, n_vertices, n_points, n_sources, len(frequencies), solver,
+                           round(seconds / 3600, 3), cost.memory_gb_per_frequency, "dense operator model")
+    if solver != "numcalc":
+        raise ValueError(f"solver must be 'embedded' or 'numcalc', got {solver!r}")
+    seconds = sum(numcalc_seconds(n_elements, f) for f in frequencies) * n_sources
+    memory, source = float("nan"), "unknown (no NumCalc binary to run -estimate_ram)"
+    if numcalc:
+        from .numcalc import estimate_memory, find_numcalc  # noqa: PLC0415
+
+        estimates = estimate_memory(find_numcalc(numcalc), project.sources[0].folder)
+        memory, source = max(e.memory_gb for e in estimates), "NumCalc -estimate_ram"
+    return ProjectCost(n_elements, n_vertices, n_points, n_sources, len(frequencies), solver,
+                       round(seconds / 3600, 3), round(memory, 3) if np.isfinite(memory) else memory, source)

@@ -1,0 +1,60 @@
+"""Solving a Mesh2HRTF project with the embedded solver (bempp-cl), step by step, resumable.
+
+Reads the project exactly as NumCalc does (nodes, elements, ear ranges, grids, frequencies) and
+writes NumCalc-format results (``be.out/be.<step>/pEvalGrid``), so the SOFA collection is shared.
+Finished steps are skipped; each step's file appears atomically when it is complete.
+"""
+from __future__ import annotations
+
+import logging
+import os
+import time
+
+import numpy as np
+
+from .bem import estimate_cost, solve_pressure
+from .project_reader import Project, read_project
+from .results import missing_steps, write_eval_grid_pressure
+
+log = logging.getLogger(__name__)
+
+
+def solve_project_embedded(folder: str | os.PathLike, steps: list[int] | None = None,
+                           max_vertices: int = 12000) -> dict:
+    """Solve the missing steps (1-based; default all) of every source. Returns a summary with the
+    estimated and measured seconds per step. Refuses meshes above ``max_vertices`` (dense memory)."""
+    project: Project = read_project(folder)
+    points = project.evaluation_points_m
+    node_ids = np.concatenate([grid.node_ids for grid in project.grids])
+    cost = estimate_cost(len(project.vertices_m), len(project.faces), len(points))
+    if len(project.vertices_m) > max_vertices:
+        from .errors import Mesh2HrtfIoError  # noqa: PLC0415
+
+        raise Mesh2HrtfIoError(f"{folder}: {len(project.vertices_m)} vertices exceed the embedded solver's limit of "
+                               f"{max_vertices} (it would need {cost.memory_gb_per_frequency:.1f} GB and "
+                               f"~{cost.seconds_per_frequency:.0f} s per frequency); use NumCalc or a coarser mesh")
+    n_steps = len(project.frequencies_hz)
+    wanted = list(range(1, n_steps + 1)) if steps is None else list(steps)
+    todo = {source.folder: [s for s in missing_steps(source.folder, n_steps, len(points)) if s in wanted]
+            for source in project.sources}
+    total = sum(len(v) for v in todo.values())
+    log.info("embedded solver: %d vertices, %d elements, %d evaluation points; estimate %.0f s and %.2f GB per "
+             "step; %d step(s) to solve (%.1f min)", len(project.vertices_m), len(project.faces), len(points),
+             cost.seconds_per_frequency, cost.memory_gb_per_frequency, total, total * cost.seconds_per_frequency / 60)
+    measured, done = [], 0
+    for source in project.sources:
+        for step in todo[source.folder]:
+            frequency = float(project.frequencies_hz[step - 1])
+            start = time.perf_counter()
+            pressure = solve_pressure(project.vertices_m, project.faces, source.elements, points, frequency,
+                                      project.speed_of_sound_m_s, project.density_kg_m3, source.velocity_m_s)
+            write_eval_grid_pressure(source.folder, step, node_ids, pressure,
+                                     f"Mesh2HRTF {project.parameters.get('Mesh2HRTF_Version', '1.2.4')}")
+            measured.append(time.perf_counter() - start)
+            done += 1
+            remaining = (total - done) * float(np.mean(measured))
+            log.info("%s step %d (%.0f Hz): %.1f s; %d/%d done, about %.1f min left", source.folder.name, step,
+                     frequency, measured[-1], done, total, remaining / 60)
+    return {"steps_solved": done, "estimated_seconds_per_step": cost.seconds_per_frequency,
+            "estimated_memory_gb": cost.memory_gb_per_frequency,
+            "measured_seconds_per_step": float(np.mean(measured)) if measured else None}

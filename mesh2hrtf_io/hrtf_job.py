@@ -1,0 +1,77 @@
+"""The HRTF stage of the workflow as plain functions (one per rule): export, solve, collect.
+
+Each writes its declared output atomically and only after the work is complete, so a killed job
+leaves no output that Snakemake could take as finished.
+"""
+from __future__ import annotations
+
+import json
+import logging
+import os
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from ppm.atomic import write_text_atomic
+
+from .cli import frequency_list
+from .errors import Mesh2HrtfIoError
+from .grids import sagittal_grid
+from .project import write_project
+from .project_reader import read_project
+
+log = logging.getLogger(__name__)
+SOURCE_TYPES = {"both": "Both ears", "left": "Left ear", "right": "Right ear"}
+
+
+def export_head_project(head_path: str | os.PathLike, project: str | os.PathLike, settings: dict) -> None:
+    """Export ``head_path`` (mm) with ear-canal sources, a sagittal-plane grid and the configured frequencies."""
+    import trimesh  # noqa: PLC0415
+
+    from stitching.ear_canal import ear_canal_elements  # noqa: PLC0415
+
+    head_path = Path(head_path)
+    if not head_path.is_file() or head_path.stat().st_size == 0:
+        raise Mesh2HrtfIoError(f"{head_path}: missing or empty head mesh")
+    head = trimesh.load(head_path, process=False, force="mesh")
+    sides = ("left", "right") if settings["ears"] == "both" else (settings["ears"],)
+    ears = {side: ear_canal_elements(head, side, source=str(head_path)) for side in sides}
+    f = settings["frequencies_hz"]
+    frequencies = frequency_list(f["min"], f["max"], f["step"])
+    layout = write_project(project, head.vertices, head.faces, ears, [sagittal_grid(polar_step_deg=settings["polar_step_deg"])],
+                           frequencies, source_type=SOURCE_TYPES[settings["ears"]], title=head_path.parent.name,
+                           compute_hrirs=bool(np.isclose(f["min"], f["step"])))
+    log.info("exported %s: %d elements, ears %s, %d frequencies", project, layout.n_object_elements,
+             layout.ear_ranges, len(frequencies))
+
+
+def solve_numcalc_step(project: str | os.PathLike, source: int, step: int, status_path: str | os.PathLike,
+                       numcalc: str | None, max_iterations: int) -> None:
+    """Run one NumCalc step (skipped when already complete) and write its status JSON."""
+    from .numcalc import find_numcalc, run_step  # noqa: PLC0415
+
+    folder = Path(project) / "NumCalc" / f"source_{source}"
+    points = len(read_project(project).evaluation_points_m)
+    status = run_step(find_numcalc(numcalc), folder, step, points, max_iterations)
+    write_text_atomic(status_path, json.dumps(status, indent=2) + "\n")
+
+
+def solve_embedded(project: str | os.PathLike, status_path: str | os.PathLike) -> None:
+    """Solve every missing step with the embedded solver and write a summary JSON."""
+    from .embedded import solve_project_embedded  # noqa: PLC0415
+
+    summary = solve_project_embedded(project)
+    write_text_atomic(status_path, json.dumps(summary, indent=2) + "\n")
+
+
+def collect(project: str | os.PathLike, hrtf_path: str | os.PathLike, hrir_path: str | os.PathLike) -> None:
+    """SOFA files of the sagittal-plane grid, moved to the declared outputs."""
+    from .sofa_out import collect_sofa  # noqa: PLC0415
+
+    with tempfile.TemporaryDirectory(dir=Path(hrtf_path).parent) as tmp:
+        written = {p.name: p for p in collect_sofa(project, tmp, hrirs=True)}
+        name = read_project(project).grids[0].name
+        for kind, target in (("HRTF", hrtf_path), ("HRIR", hrir_path)):
+            os.replace(written[f"{kind}_{name}.sofa"], target)
+    log.info("collected %s and %s", hrtf_path, hrir_path)

@@ -1,0 +1,166 @@
+"""Running Mesh2HRTF's NumCalc: one process per frequency step, resumable, with convergence checks.
+
+NumCalc is found from a configured path or on PATH. ``NumCalc -estimate_ram`` predicts the memory of
+every step (``Memory.txt``), which the workflow passes to the scheduler as ``mem_mb``. A step runs as
+``NumCalc -istart k -iend k`` in ``NumCalc/source_N``; its log ``NCk-k.out`` is checked for
+non-convergence ("Maximum number of iterations is reached!") and input problems ("Too many integral
+points"). A non-converged step is rerun once with more iterations, then reported. Each finished step
+gets ``be.out/be.k/status.json``; steps with a complete, converged result are never recomputed.
+"""
+from __future__ import annotations
+
+import dataclasses
+import json
+import logging
+import os
+import shutil
+import subprocess
+import time
+from pathlib import Path
+
+from ppm.atomic import write_text_atomic
+
+from .errors import Mesh2HrtfIoError
+from .results import step_folder, step_is_complete
+
+log = logging.getLogger(__name__)
+
+NOT_CONVERGED = "Maximum number of iterations is reached"
+BAD_ELEMENTS = "Too many integral points"
+DEFAULT_MAX_ITERATIONS = 250
+
+
+class NumCalcError(Mesh2HrtfIoError):
+    """NumCalc is missing, crashed, or a step did not converge."""
+
+
+@dataclasses.dataclass(frozen=True)
+class StepEstimate:
+    step: int
+    frequency_hz: float
+    memory_gb: float
+
+
+def find_numcalc(configured: str | os.PathLike | None = None) -> Path:
+    """The NumCalc binary: the configured path, else ``NumCalc`` on PATH."""
+    if configured:
+        path = Path(configured).expanduser()
+        if path.is_file() and os.access(path, os.X_OK):
+            return path.resolve()
+        found = shutil.which(str(configured))
+        if found:
+            return Path(found)
+        raise NumCalcError(f"NumCalc binary {configured!r} not found or not executable: fix solve.numcalc in the "
+                           "config, or use the embedded solver (solve.solver: embedded)")
+    found = shutil.which("NumCalc")
+    if not found:
+        raise NumCalcError("NumCalc is not on PATH: build it from Mesh2HRTF (mesh2hrtf/NumCalc/src, make) and set "
+                           "solve.numcalc, or use the embedded solver (solve.solver: embedded)")
+    return Path(found)
+
+
+def estimate_memory(numcalc: Path, source_folder: str | os.PathLike) -> list[StepEstimate]:
+    """Run ``NumCalc -estimate_ram`` and read ``Memory.txt``: one estimate per frequency step."""
+    source_folder = Path(source_folder)
+    result = subprocess.run([str(numcalc), "-estimate_ram"], cwd=source_folder, capture_output=True, text=True,
+                            timeout=600)
+    memory_file = source_folder / "Memory.txt"
+    if result.returncode != 0 or not memory_file.is_file():
+        raise NumCalcError(f"{source_folder}: NumCalc -estimate_ram failed (exit {result.returncode}): "
+                           f"{(result.stdout + result.stderr)[-800:]}")
+    estimates = []
+    for line in memory_file.read_text().split("\n"):
+        parts = line.split()
+        if len(parts) >= 3:
+            try:
+                estimates.append(StepEstimate(int(parts[0]), float(parts[1]), float(parts[2])))
+            except ValueError:
+                continue  # header lines
+    return estimates
+
+
+def step_status(source_folder: str | os.PathLike, step: int) -> dict | None:
+    path = step_folder(source_folder, step) / "status.json"
+    if not path.is_file():
+        return None
+    try:
+        return json.loads(path.read_text())
+    except json.JSONDecodeError:
+        return None
+
+
+def step_done(source_folder: str | os.PathLike, step: int, expected_nodes: int) -> bool:
+    """A complete result that is not marked as non-converged."""
+    status = step_status(source_folder, step)
+    return step_is_complete(source_folder, step, expected_nodes) and (status is None or status.get("converged", True))
+
+
+def _log_problems(log_text: str) -> list[str]:
+    problems = []
+    if NOT_CONVERGED in log_text:
+        problems.append("not converged (maximum number of iterations reached)")
+    if BAD_ELEMENTS in log_text:
+        problems.append("too many integral points: elements too large or badly shaped for this frequency")
+    return problems
+
+
+def run_step(numcalc: Path, source_folder: str | os.PathLike, step: int, expected_nodes: int,
+             max_iterations: int = DEFAULT_MAX_ITERATIONS, timeout_s: float | None = None) -> dict:
+    """Solve one frequency step (1-based) unless it is already done; returns its status."""
+    source_folder = Path(source_folder)
+    if step_done(source_folder, step, expected_nodes):
+        return step_status(source_folder, step) or {"step": step, "converged": True, "resumed": True}
+    attempts = []
+    for iterations in (max_iterations, 2 * max_iterations):
+        start = time.perf_counter()
+        try:
+            result = subprocess.run([str(numcalc), "-istart", str(step), "-iend", str(step), "-nitermax",
+                                     str(iterations)], cwd=source_folder, capture_output=True, text=True,
+                                    timeout=timeout_s)
+        except (OSError, subprocess.TimeoutExpired) as exc:
+            raise NumCalcError(f"{source_folder}: NumCalc step {step} could not run ({exc})") from exc
+        seconds = time.perf_counter() - start
+        log_file = source_folder / f"NC{step}-{step}.out"
+        log_text = log_file.read_text(errors="replace") if log_file.is_file() else ""
+        problems = _log_problems(log_text)
+        complete = step_is_complete(source_folder, step, expected_nodes)
+        if result.returncode != 0 or not complete:
+            raise NumCalcError(f"{source_folder}: NumCalc step {step} failed (exit {result.returncode}, result "
+                               f"{'complete' if complete else 'missing or incomplete'}); log {log_file}:\n"
+                               f"{(log_text or result.stdout + result.stderr)[-1500:]}")
+        attempts.append({"max_iterations": iterations, "seconds": round(seconds, 2), "problems": problems})
+        if not problems:
+            break
+        log.warning("%s step %d: %s; rerunning with %d iterations", source_folder.name, step, "; ".join(problems),
+                    2 * iterations)
+    status = {"step": step, "solver": "NumCalc", "converged": not attempts[-1]["problems"],
+              "problems": attempts[-1]["problems"], "attempts": attempts}
+    write_text_atomic(step_folder(source_folder, step) / "status.json", json.dumps(status, indent=2) + "\n")
+    if not status["converged"]:
+        raise NumCalcError(f"{source_folder}: step {step} {'; '.join(status['problems'])} after "
+                           f"{len(attempts)} attempts; refine the mesh or check it (see NC{step}-{step}.out)")
+    return status
+
+
+def solve_project_numcalc(folder: str | os.PathLike, numcalc: str | os.PathLike | None = None,
+                          steps: list[int] | None = None, max_iterations: int = DEFAULT_MAX_ITERATIONS) -> dict:
+    """Run the missing steps (1-based; default all) of every source one after another (for clusters,
+    the workflow runs one job per step instead). Returns measured seconds per step."""
+    from .project_reader import read_project  # noqa: PLC0415
+
+    binary = find_numcalc(numcalc)
+    project = read_project(folder)
+    n_points = len(project.evaluation_points_m)
+    wanted = list(range(1, len(project.frequencies_hz) + 1)) if steps is None else list(steps)
+    seconds = []
+    for source in project.sources:
+        for step in wanted:
+            if step_done(source.folder, step, n_points):
+                continue
+            start = time.perf_counter()
+            run_step(binary, source.folder, step, n_points, max_iterations)
+            seconds.append(time.perf_counter() - start)
+            log.info("%s step %d (%.0f Hz): %.1f s", source.folder.name, step, project.frequencies_hz[step - 1],
+                     seconds[-1])
+    return {"steps_solved": len(seconds), "measured_seconds_per_step": float(sum(seconds) / len(seconds))
+            if seconds else None}

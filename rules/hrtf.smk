@@ -1,0 +1,78 @@
+# HRTFs of head meshes: Mesh2HRTF project export, solving (NumCalc one job per ear and frequency
+# step, or the embedded solver one job per project), and collection into SOFA files.
+# Variants: "reference" = the dataset's ground-truth head (<subject>/head_graded_left.ply).
+
+
+rule export_project:
+    input:
+        head=hrtf_head_mesh,
+    output:
+        project=directory("results/{subject}/hrtf/{variant}/project"),
+    log:
+        "logs/hrtf/export_project/{subject}_{variant}.log",
+    benchmark:
+        "benchmarks/timings/hrtf/export_project/{subject}_{variant}.tsv"
+    params:
+        settings=lambda wc: config["hrtf"],
+    threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=10,
+    script:
+        "../workflow/scripts/export_project.py"
+
+
+rule solve_numcalc_step:
+    input:
+        project="results/{subject}/hrtf/{variant}/project",
+    output:
+        status="results/{subject}/hrtf/{variant}/steps/source_{source}/step_{step}.json",
+    log:
+        "logs/hrtf/solve_numcalc_step/{subject}_{variant}_{source}_{step}.log",
+    benchmark:
+        "benchmarks/timings/hrtf/solve_numcalc_step/{subject}_{variant}_{source}_{step}.tsv"
+    params:
+        numcalc=lambda wc: config["hrtf"]["numcalc"],
+        max_iterations=lambda wc: config["hrtf"]["max_iterations"],
+    threads: 1
+    resources:
+        mem_mb=numcalc_step_mem_mb,
+        runtime=lambda wc: config["hrtf"]["step_runtime_min"],
+    script:
+        "../workflow/scripts/solve_numcalc_step.py"
+
+
+rule solve_embedded:
+    input:
+        project="results/{subject}/hrtf/{variant}/project",
+    output:
+        status="results/{subject}/hrtf/{variant}/steps/embedded.json",
+    log:
+        "logs/hrtf/solve_embedded/{subject}_{variant}.log",
+    benchmark:
+        "benchmarks/timings/hrtf/solve_embedded/{subject}_{variant}.tsv"
+    threads: 2
+    resources:
+        mem_mb=embedded_mem_mb,
+        runtime=lambda wc: config["hrtf"]["step_runtime_min"] * len(hrtf_frequencies()) * 2,
+    script:
+        "../workflow/scripts/solve_embedded.py"
+
+
+rule collect_sofa:
+    input:
+        project="results/{subject}/hrtf/{variant}/project",
+        steps=solved_steps,
+    output:
+        hrtf="results/{subject}/hrtf/{variant}/HRTF_SagittalPlanes.sofa",
+        hrir="results/{subject}/hrtf/{variant}/HRIR_SagittalPlanes.sofa",
+    log:
+        "logs/hrtf/collect_sofa/{subject}_{variant}.log",
+    benchmark:
+        "benchmarks/timings/hrtf/collect_sofa/{subject}_{variant}.tsv"
+    threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=10,
+    script:
+        "../workflow/scripts/collect_sofa.py"

@@ -1,0 +1,174 @@
+"""Solving and collecting Mesh2HRTF projects: results files, resumption, SOFA output (with the analytic
+rigid sphere standing in for the solver where only the bookkeeping is tested), the embedded solver on a
+whole project, the cost estimate, and bad input."""
+from __future__ import annotations
+
+import json
+import os
+import stat
+
+import numpy as np
+import pytest
+import sofar
+import trimesh
+
+from amt_bridge import read_hrtf_set
+from mesh2hrtf_io import Mesh2HrtfIoError, sphere_grid, write_project
+from mesh2hrtf_io.analytic import rigid_sphere_hrtf
+from mesh2hrtf_io.bem import free_field_reference
+from mesh2hrtf_io.cli import frequency_list
+from mesh2hrtf_io.cli import main as m2h_main
+from mesh2hrtf_io.cost import project_cost
+from mesh2hrtf_io.embedded import solve_project_embedded
+from mesh2hrtf_io.numcalc import NumCalcError, find_numcalc, run_step
+from mesh2hrtf_io.project_reader import read_project
+from mesh2hrtf_io.results import missing_steps, read_eval_grid_pressure, step_folder, write_eval_grid_pressure
+from mesh2hrtf_io.sofa_out import collect_sofa
+from stitching.ear_canal import ear_canal_elements
+
+RADIUS_MM = 87.5
+FREQUENCIES = frequency_list(250.0, 2000.0, 250.0)
+
+
+def _sphere_project(folder, subdivisions=2, frequencies=FREQUENCIES, hrirs=True):
+    mesh = trimesh.creation.icosphere(subdivisions=subdivisions, radius=RADIUS_MM)
+    ears = {side: ear_canal_elements(mesh, side) for side in ("left", "right")}
+    grid = sphere_grid("Sphere", trimesh.creation.icosphere(subdivisions=1, radius=1.2).vertices)
+    write_project(folder, mesh.vertices, mesh.faces, ears, [grid], frequencies, speed_of_sound_m_s=343.0,
+                  density_kg_m3=1.2, compute_hrirs=hrirs)
+    return mesh, ears, grid
+
+
+def _ear_direction(mesh, elements):
+    centre = mesh.triangles_center[elements].mean(axis=0)
+    return centre / np.linalg.norm(centre)
+
+
+def _write_analytic_results(folder, mesh, ears, grid, steps=None):
+    """NumCalc-format results from the analytic series (e^{-iωt}: conjugate), scaled like a solver's."""
+    project = read_project(folder)
+    for source, side in zip(project.sources, ("left", "right")):
+        area = mesh.area_faces[ears[side]].sum() / 1e6
+        for step, f in enumerate(project.frequencies_hz, start=1):
+            if steps is not None and step not in steps:
+                continue
+            hrtf = np.conj(rigid_sphere_hrtf(f, RADIUS_MM / 1000, grid.points_m, _ear_direction(mesh, ears[side]), 343.0))
+            pressure = hrtf * free_field_reference(grid.points_m, f, area, 343.0, 1.2)
+            write_eval_grid_pressure(source.folder, step, grid.node_ids if hasattr(grid, "node_ids")
+                                     else project.grids[0].node_ids, pressure)
+    return project
+
+
+def test_project_reads_back_as_written(tmp_path):
+    mesh, ears, grid = _sphere_project(tmp_path / "p")
+    project = read_project(tmp_path / "p")
+    assert project.vertices_m.shape == (len(mesh.vertices), 3) and len(project.faces) == len(mesh.faces)
+    np.testing.assert_allclose(project.vertices_m * 1000, mesh.vertices, atol=1e-3)
+    assert [(s.ear, s.element_range) for s in project.sources] == [("left", (318, 318)), ("right", (319, 319))]
+    np.testing.assert_allclose(project.evaluation_points_m, grid.points_m, atol=1e-6)
+    np.testing.assert_array_equal(project.frequencies_hz, FREQUENCIES)
+
+
+def test_results_files_detect_incomplete_steps(tmp_path):
+    _sphere_project(tmp_path / "p")
+    project = read_project(tmp_path / "p")
+    source, ids = project.sources[0].folder, project.grids[0].node_ids
+    write_eval_grid_pressure(source, 1, ids, np.ones(len(ids)) * (1 + 2j))
+    np.testing.assert_allclose(read_eval_grid_pressure(source, 1, len(ids)), 1 + 2j)
+    truncated = step_folder(source, 2) / "pEvalGrid"
+    truncated.parent.mkdir(parents=True)
+    truncated.write_text("\n".join((step_folder(source, 1) / "pEvalGrid").read_text().split("\n")[:20]) + "\n")
+    write_eval_grid_pressure(source, 3, ids, np.full(len(ids), np.nan + 0j))
+    assert missing_steps(source, len(FREQUENCIES), len(ids)) == list(range(2, len(FREQUENCIES) + 1))
+    with pytest.raises(Mesh2HrtfIoError, match="incomplete"):
+        read_eval_grid_pressure(source, 2, len(ids))
+    with pytest.raises(Mesh2HrtfIoError, match="did not converge"):
+        read_eval_grid_pressure(source, 3, len(ids))
+
+
+def test_collected_sofa_is_the_referenced_hrtf_and_causal_hrirs(tmp_path):
+    mesh, ears, grid = _sphere_project(tmp_path / "p")
+    project = _write_analytic_results(tmp_path / "p", mesh, ears, grid)
+    files = collect_sofa(tmp_path / "p")
+    assert [f.name for f in files] == ["HRTF_Sphere.sofa", "HRIR_Sphere.sofa"]
+    hrtf = sofar.read_sofa(str(files[0]), verify=True)
+    assert hrtf.GLOBAL_SOFAConventions == "SimpleFreeFieldHRTF"
+    data = hrtf.Data_Real + 1j * hrtf.Data_Imag
+    assert data.shape == (len(grid.points_m), 2, len(FREQUENCIES))
+    for index, side in enumerate(("left", "right")):
+        expected = np.conj(np.stack([rigid_sphere_hrtf(f, RADIUS_MM / 1000, grid.points_m,
+                                                       _ear_direction(mesh, ears[side]), 343.0) for f in FREQUENCIES],
+                                    axis=-1))
+        np.testing.assert_allclose(data[:, index], expected, atol=1e-4)  # grid nodes are stored to 1 µm
+    np.testing.assert_allclose(hrtf.SourcePosition[:, 2], 1.2, atol=1e-6)
+    np.testing.assert_allclose(np.asarray(hrtf.ReceiverPosition).reshape(2, 3)[:, 1], [RADIUS_MM / 1000, -RADIUS_MM / 1000], atol=3e-3)
+    hrir = sofar.read_sofa(str(files[1]), verify=True)
+    assert hrir.GLOBAL_SOFAConventions == "SimpleFreeFieldHRIR" and hrir.Data_SamplingRate == 4000.0
+    # a source on the left reaches the left ear first (phase convention and ear order right)
+    left_source = int(np.argmax(grid.points_m[:, 1]))
+    onset = np.argmax(np.abs(hrir.Data_IR[left_source]) > 0.5 * np.abs(hrir.Data_IR[left_source]).max(), axis=-1)
+    assert onset[0] <= onset[1]
+    energy = (hrir.Data_IR[left_source] ** 2).sum(axis=-1)
+    assert energy[0] > energy[1]
+    as_read = read_hrtf_set(files[0])  # the localisation model reads our HRTF files in their convention
+    assert (as_read.irs[left_source, 0] ** 2).sum() > (as_read.irs[left_source, 1] ** 2).sum()
+
+
+def test_collection_refuses_partial_results(tmp_path):
+    mesh, ears, grid = _sphere_project(tmp_path / "p")
+    _write_analytic_results(tmp_path / "p", mesh, ears, grid, steps={1, 2, 3})
+    with pytest.raises(Mesh2HrtfIoError, match=r"steps \[4, 5, 6, 7, 8\] are not solved"):
+        collect_sofa(tmp_path / "p")
+    assert not (tmp_path / "p" / "Output2HRTF").exists() or not list((tmp_path / "p" / "Output2HRTF").iterdir())
+
+
+def test_embedded_solver_solves_a_project_and_resumes(tmp_path, caplog):
+    """Whole project with the embedded solver (162-vertex sphere, 2 steps, both ears): within 1 dB of
+    the series; a rerun solves nothing; a deleted step is solved again."""
+    frequencies = [250.0, 500.0]
+    mesh, ears, grid = _sphere_project(tmp_path / "p", frequencies=frequencies, hrirs=False)
+    summary = solve_project_embedded(tmp_path / "p")
+    assert summary["steps_solved"] == 4
+    hrtf = sofar.read_sofa(str(collect_sofa(tmp_path / "p")[0]), verify=True)
+    data = hrtf.Data_Real + 1j * hrtf.Data_Imag
+    for index, side in enumerate(("left", "right")):
+        for k, f in enumerate(frequencies):
+            analytic = rigid_sphere_hrtf(f, RADIUS_MM / 1000, grid.points_m, _ear_direction(mesh, ears[side]), 343.0)
+            assert np.abs(20 * np.log10(np.abs(data[:, index, k] / analytic))).max() < 1.0
+    assert solve_project_embedded(tmp_path / "p")["steps_solved"] == 0
+    (step_folder(tmp_path / "p" / "NumCalc" / "source_2", 2) / "pEvalGrid").unlink()
+    assert solve_project_embedded(tmp_path / "p")["steps_solved"] == 1
+
+
+def test_cost_estimate_and_cli(tmp_path, capsys):
+    _sphere_project(tmp_path / "p")
+    cost = project_cost(tmp_path / "p", "embedded")
+    assert cost.n_sources == 2 and cost.n_frequencies == len(FREQUENCIES) and cost.n_elements == 320
+    assert 0 < cost.cpu_hours < 1 and 0 < cost.peak_memory_gb < 1
+    numcalc_cost = project_cost(tmp_path / "p", "numcalc")
+    assert numcalc_cost.cpu_hours > 0 and np.isnan(numcalc_cost.peak_memory_gb)
+    assert m2h_main(["cost", str(tmp_path / "p")]) == 0
+    assert json.loads(capsys.readouterr().out)["n_frequencies"] == len(FREQUENCIES)
+    head = trimesh.creation.icosphere(subdivisions=2, radius=RADIUS_MM)
+    head.export(tmp_path / "head.ply")
+    assert m2h_main(["export", str(tmp_path / "head.ply"), str(tmp_path / "q"), "--fmax", "1000", "--fstep", "500"]) == 0
+    assert read_project(tmp_path / "q").frequencies_hz.tolist() == [500.0, 1000.0]
+    (head.copy().apply_scale(0.001)).export(tmp_path / "head_m.ply")
+    assert m2h_main(["export", str(tmp_path / "head_m.ply"), str(tmp_path / "r")]) == 2
+    assert "millimetres" in capsys.readouterr().err
+
+
+def test_missing_or_crashing_numcalc_is_a_clear_error(tmp_path, monkeypatch):
+    monkeypatch.setenv("PATH", str(tmp_path))
+    with pytest.raises(NumCalcError, match="not on PATH"):
+        find_numcalc()
+    with pytest.raises(NumCalcError, match="not found or not executable"):
+        find_numcalc(tmp_path / "NumCalc")
+    crashing = tmp_path / "NumCalc"
+    crashing.write_text("#!/bin/sh\necho 'segmentation fault' >&2\nexit 139\n")
+    crashing.chmod(crashing.stat().st_mode | stat.S_IXUSR)
+    _sphere_project(tmp_path / "p")
+    source = tmp_path / "p" / "NumCalc" / "source_1"
+    with pytest.raises(NumCalcError, match="step 1 failed \\(exit 139"):
+        run_step(find_numcalc(crashing), source, 1, 42)
+    assert not (step_folder(source, 1) / "status.json").exists()

@@ -25,7 +25,7 @@ if DATA_ROOT is not None and not SUBJECTS:
 
 wildcard_constraints:
     subject="|".join(SUBJECTS) if SUBJECTS else "[A-Za-z0-9_-]+",
-    variant="|".join(("reference",)),
+    variant="reference|ppm",
     source="[12]",
     step="[0-9]+",
 
@@ -35,7 +35,7 @@ def template_params():
     return config["template"]
 
 
-HRTF_VARIANTS = ("reference",)
+HRTF_VARIANTS = ("reference", "ppm")
 
 
 def hrtf_frequencies():
@@ -52,6 +52,8 @@ def hrtf_head_mesh(wildcards):
         if DATA_ROOT is None:
             raise ValueError("HRTFs of reference heads need config key data_root (a dataset with head meshes)")
         return str(DATA_ROOT / wildcards.subject / config["hrtf"]["reference_head"])
+    if wildcards.variant == "ppm":
+        return f"results/{wildcards.subject}/remesh/head.ply"
     raise ValueError(f"unknown HRTF variant {wildcards.variant!r}; known: {HRTF_VARIANTS}")
 
 
@@ -93,7 +95,8 @@ def embedded_mem_mb(wildcards, input):
 
 def get_final_output():
     """Everything `snakemake --cores 2` makes: PPM pictures, and with a dataset the leave-one-subject-out
-    templates and the alignment of every subject."""
+    templates, the alignment of every subject, and its head with the PPM pinna stitched in and remeshed
+    (plus, with hrtf.enabled, the HRTFs of the reference and the PPM heads)."""
     out = [
         "results/ppm/default_ppm.png",
         "results/ppm/range_sheet.png",
@@ -101,6 +104,7 @@ def get_final_output():
         "results/ppm/default_parameters.csv",
     ]
     out += [f"results/{s}/align/summary.json" for s in SUBJECTS]
+    out += [f"results/{s}/remesh/validation.json" for s in SUBJECTS]
     if config["hrtf"]["enabled"]:
-        out += [f"results/{s}/hrtf/reference/HRIR_SagittalPlanes.sofa" for s in SUBJECTS]
+        out += [f"results/{s}/hrtf/{v}/HRIR_SagittalPlanes.sofa" for s in SUBJECTS for v in HRTF_VARIANTS]
     return out

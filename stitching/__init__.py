@@ -1,5 +1,10 @@
-"""Stitching the aligned PPM pinna onto a head mesh and remeshing it for BEM (millimetres).
+"""Stitching the aligned PPM pinna onto a head mesh and remeshing it for BEM (millimetres, project
+frame: +x front, +y left, +z up, origin at the interaural centre)."""
+from .ear_canal import EarCanalError, ear_canal_elements
+from .errors import StitchError
+from .remesh import Band, remesh_graded, repair_self_intersections, self_intersections
+from .replace_pinna import StitchedHead, replace_pinna
+from .report import validate_head
 
-Not built yet: see the open issue "Stitch the aligned pinna onto the head and remesh it for BEM".
-"""
-__all__: list[str] = []
+__all__ = ["Band", "EarCanalError", "StitchError", "StitchedHead", "ear_canal_elements", "remesh_graded",
+           "repair_self_intersections", "replace_pinna", "self_intersections", "validate_head"]

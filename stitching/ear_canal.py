@@ -11,12 +11,12 @@ from __future__ import annotations
 import numpy as np
 import trimesh
 
-from ppm.errors import PpmError
+from .errors import StitchError
 
 SIDES = {"left": 1.0, "right": -1.0}
 
 
-class EarCanalError(PpmError):
+class EarCanalError(StitchError):
     """No usable ear-canal element: the head is not centred at the interaural axis or has no ear there."""
 
 

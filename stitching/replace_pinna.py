@@ -1,0 +1,114 @@
+"""Replacing the left pinna of a head mesh by an aligned PPM pinna (millimetres, project frame:
++x front, +y left, +z up, origin at the interaural centre).
+
+The PPM pinna is an open surface whose single boundary (the rim of its skin ring) lies on the head's
+skin. The head faces that the pinna covers — those with a vertex that, seen along the pinna's base
+normal, falls inside the rim grown by ``gap_mm`` and lies within ``reach_mm`` of the pinna — are cut
+away, leaving one hole at least ``gap_mm`` wider than the rim; a zipper strip joins the hole to the rim. The
+result is one closed, consistently wound surface; the rest of the head (the right pinna included)
+keeps its vertices and triangles unchanged.
+"""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import trimesh
+from matplotlib.path import Path as PolygonPath
+from scipy.spatial import cKDTree
+
+from mesh2hrtf_io.checks import mesh_problems
+
+from .errors import StitchError
+from .loops import boundary_loops, bridge_loops
+
+
+@dataclasses.dataclass(frozen=True)
+class StitchedHead:
+    """The stitched surface and, per face, where it came from: 0 = head, 1 = PPM pinna, 2 = seam strip."""
+
+    mesh: trimesh.Trimesh
+    origin: np.ndarray
+    removed_head_faces: int
+    rim_gap_mm: float
+
+
+def _check_pinna(pinna: trimesh.Trimesh, source: str) -> np.ndarray:
+    vertices = np.asarray(pinna.vertices)
+    if len(pinna.faces) == 0 or not np.isfinite(vertices).all():
+        raise StitchError(f"{source}: the pinna mesh is empty or holds NaN/inf coordinates")
+    extent = float(np.linalg.norm(np.ptp(vertices, axis=0)))
+    if not 20.0 <= extent <= 200.0:
+        raise StitchError(f"{source}: the pinna is {extent:.3g} units across; a pinna is 50-100 mm: give it in "
+                          "millimetres (a mesh in metres must be scaled by 1000)")
+    if vertices[:, 1].mean() < 30.0:
+        raise StitchError(f"{source}: the pinna lies at y = {vertices[:, 1].mean():.1f} mm; a LEFT pinna lies at "
+                          "y > 30 mm (+y = left). Mirror a right pinna (y -> -y) or align it to the left ear first")
+    loops = boundary_loops(pinna)
+    if not loops:
+        raise StitchError(f"{source}: the pinna is closed; it must be open along the rim of its skin ring")
+    if len(loops) > 1:
+        raise StitchError(f"{source}: the pinna has {len(loops)} boundary loops; it must have one (the rim of its "
+                          f"skin ring); close the {len(loops) - 1} hole(s) first")
+    return loops[0]
+
+
+def replace_pinna(head: trimesh.Trimesh, pinna: trimesh.Trimesh, *, gap_mm: float = 1.5, reach_mm: float = 25.0,
+                  head_source: str = "head mesh", pinna_source: str = "pinna mesh") -> StitchedHead:
+    """Cut the head's left pinna region and stitch ``pinna`` in (both in mm, same frame)."""
+    problems = mesh_problems(head.vertices, head.faces)
+    if problems:
+        raise StitchError(f"{head_source}: the head cannot be stitched:\n  - " + "\n  - ".join(problems))
+    rim = _check_pinna(pinna, pinna_source)
+    rim_points = np.asarray(pinna.vertices)[rim]
+    head_tree = trimesh.proximity.ProximityQuery(head)
+    rim_distance = np.abs(head_tree.signed_distance(rim_points))
+    if np.median(rim_distance) > 4.0:
+        raise StitchError(f"{pinna_source}: the rim of the pinna lies {np.median(rim_distance):.1f} mm (median) from "
+                          f"the skin of {head_source}; it must rest on the head (align the pinna to this head's "
+                          "left ear, in the same frame)")
+
+    centre = rim_points.mean(axis=0)
+    _, _, axes = np.linalg.svd(rim_points - centre)
+    normal = axes[2] if axes[2][1] >= 0 else -axes[2]  # the ear's outward axis, towards +y
+    plane = np.stack([axes[0], axes[1]], axis=1)
+
+    # a head vertex is covered when it lies near the pinna, on its side of the head, and inside the rim
+    # (grown by gap_mm) seen along the ear axis; a face is cut when any of its vertices is covered, so
+    # every vertex left on the hole is at least gap_mm from the rim
+    points = np.asarray(head.vertices)
+    near_pinna = cKDTree(pinna.vertices).query(points, distance_upper_bound=reach_mm)[0] < reach_mm
+    lateral = (points - centre) @ normal > -reach_mm
+    rim_2d = (rim_points - centre) @ plane
+    points_2d = (points - centre) @ plane
+    inside = PolygonPath(rim_2d).contains_points(points_2d)
+    close_to_rim = cKDTree(rim_2d).query(points_2d)[0] < gap_mm
+    covered = near_pinna & lateral & (inside | close_to_rim)
+    cut = covered[head.faces].any(axis=1)
+    if not cut.any():
+        raise StitchError(f"{pinna_source}: no head face lies under the pinna; is it placed at this head's left ear?")
+
+    kept = trimesh.Trimesh(head.vertices, head.faces[~cut], process=False)
+    components = trimesh.graph.connected_components(kept.face_adjacency, nodes=np.arange(len(kept.faces)))
+    largest = max(components, key=len)
+    kept_faces = kept.faces[np.sort(largest)]
+    kept = trimesh.Trimesh(head.vertices, kept_faces, process=False)
+    holes = boundary_loops(kept)
+    if len(holes) != 1:
+        raise StitchError(f"{head_source}: cutting under the pinna left {len(holes)} holes instead of one; the pinna "
+                          "rim does not enclose one simple region of the head (check its placement)")
+    offset = len(head.vertices)
+    vertices = np.vstack([head.vertices, pinna.vertices])
+    strip = bridge_loops(vertices, holes[0], rim + offset, metric=(vertices - centre) @ plane)
+    faces = np.vstack([kept_faces, pinna.faces + offset, strip])
+    origin = np.concatenate([np.zeros(len(kept_faces), np.int8), np.ones(len(pinna.faces), np.int8),
+                             np.full(len(strip), 2, np.int8)])
+    mesh = trimesh.Trimesh(vertices, faces, process=False)
+    mesh.remove_unreferenced_vertices()
+    if not mesh.is_winding_consistent:
+        raise StitchError(f"{pinna_source}: the pinna's triangles are wound against the head's; its normals must "
+                          "point out of the head (flip the pinna's faces)")
+    if mesh.volume <= 0:
+        raise StitchError(f"{head_source}: the stitched head has inward normals (negative volume)")
+    gap = float(np.median(cKDTree(vertices[holes[0]]).query(rim_points)[0]))
+    return StitchedHead(mesh, origin, int(cut.sum()), gap)

@@ -1,0 +1,110 @@
+"""Stitching the PPM pinna onto real heads and remeshing for BEM: closed manifold, edge lengths, round
+trip with the head's own pinna, ear-canal source, bad input (real pymeshlab, real scans)."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import trimesh
+
+from ppm.align import align, prepare_target
+from stitching import StitchError, ear_canal_elements, replace_pinna, self_intersections, validate_head
+from stitching.pipeline import remesh_files, stitch_files
+from stitching.remesh import face_distance_to
+
+
+@pytest.fixture(scope="module")
+def p143_head(sonicom):
+    return trimesh.load(sonicom / "P143" / "head_graded_left.ply", process=False)
+
+
+@pytest.fixture(scope="module")
+def p143_ppm_pinna(model, sonicom):
+    """The PPM (default template) fitted to P143's left pinna scan."""
+    from ppm.parameters import PinnaParameters
+
+    target = prepare_target(sonicom / "P143" / "pinna_left_crop.ply", side="left", margin_mm=3.0)
+    result = align(model, target)
+    model.set_parameters(PinnaParameters.default())
+    return trimesh.Trimesh(result.vertices_mm, model.faces, process=False)
+
+
+def _own_pinna_region(head: trimesh.Trimesh) -> trimesh.Trimesh:
+    """The head's own left pinna with a ring of skin, cut along a smooth ellipse (seen from the side)."""
+    c = head.triangles_center
+    inside = (((c[:, 0] + 8) / 40) ** 2 + ((c[:, 2] - 2) / 48) ** 2 < 1) & (c[:, 1] > 50)
+    region = trimesh.Trimesh(head.vertices, head.faces[inside], process=False)
+    region.remove_unreferenced_vertices()
+    return max(region.split(only_watertight=False), key=lambda m: len(m.faces))
+
+
+def test_round_trip_with_the_heads_own_pinna_changes_nothing_outside_the_seam(p143_head):
+    own = _own_pinna_region(p143_head)
+    stitched = replace_pinna(p143_head, own)
+    mesh = stitched.mesh
+    assert mesh.is_watertight and mesh.is_winding_consistent and mesh.volume > 0
+    assert self_intersections(mesh) == 0
+    outside_seam = trimesh.Trimesh(mesh.vertices, mesh.faces[stitched.origin != 2], process=False)
+    samples = trimesh.sample.sample_surface_even(outside_seam, 20000, seed=3)[0]
+    _, distance, _ = trimesh.proximity.closest_point(p143_head, samples)
+    assert distance.max() < 0.1  # mm: head and pinna faces are the original ones
+    seam = trimesh.Trimesh(mesh.vertices, mesh.faces[stitched.origin == 2], process=False)
+    _, seam_distance, _ = trimesh.proximity.closest_point(p143_head, seam.triangles_center)
+    assert np.percentile(seam_distance, 95) < 0.5  # the strip spans a ~2 mm gap on the skin
+    assert 1.5 <= stitched.rim_gap_mm <= 4.0
+
+
+def test_fitted_ppm_pinna_gives_a_bem_ready_head(tmp_path, sonicom, p143_ppm_pinna):
+    pinna_path = tmp_path / "aligned_pinna.ply"
+    p143_ppm_pinna.export(pinna_path)
+    head_path = sonicom / "P143" / "head_graded_left.ply"
+    stitch = stitch_files(head_path, pinna_path, tmp_path / "stitched.ply", tmp_path / "stitch.json")
+    assert stitch["closed"] and stitch["seam_faces"] > 100
+    report = remesh_files(tmp_path / "stitched.ply", pinna_path, tmp_path / "head.ply", tmp_path / "validation.json")
+    assert report["ok"] and report["closed"] and report["self_intersecting_faces"] == 0 and report["normals_outward"]
+    assert abs(report["pinna_edge_mm"]["median"] - 1.0) <= 0.15
+    assert 20_000 <= report["n_triangles"] <= 45_000
+    assert report["pinna_to_head_mm"]["p95"] < 0.1  # the seam does not distort the pinna
+    assert report["max_frequency_hz_6_per_wavelength_pinna"] > 20_000
+    assert json.loads((tmp_path / "validation.json").read_text())["n_triangles"] == report["n_triangles"]
+    remeshed = trimesh.load(tmp_path / "head.ply", process=False)
+    # the right pinna region is still there (coarser, but the head keeps its shape on that side)
+    right = remeshed.vertices[:, 1].min()
+    assert right == pytest.approx(trimesh.load(head_path, process=False).vertices[:, 1].min(), abs=2.0)
+    left_ear = ear_canal_elements(remeshed, "left")
+    depth = remeshed.triangles_center[left_ear][:, 1].mean()
+    assert 50 < depth < 80  # in the concha / canal entrance, not on the tragus or helix rim
+    assert face_distance_to(p143_ppm_pinna.vertices, remeshed)[left_ear].min() < 1.0
+
+
+def test_ear_canal_elements_of_a_real_head(sonicom):
+    head = trimesh.load(sonicom / "P039" / "head_graded_left.ply", process=False)
+    for side, sign in (("left", 1), ("right", -1)):
+        faces = ear_canal_elements(head, side)
+        centre = head.triangles_center[faces].mean(axis=0)
+        assert 40 < sign * centre[1] < 90 and abs(centre[0]) < 15 and abs(centre[2]) < 15
+        assert head.area_faces[faces].sum() >= 4.0
+
+
+def test_bad_input_is_named_and_nothing_is_written(tmp_path, p143_head, p143_ppm_pinna, sonicom):
+    open_head = trimesh.Trimesh(p143_head.vertices, p143_head.faces[1:], process=False)
+    with pytest.raises(StitchError, match="open"):
+        replace_pinna(open_head, p143_ppm_pinna)
+    with pytest.raises(StitchError, match="metres"):
+        replace_pinna(trimesh.Trimesh(p143_head.vertices / 1000, p143_head.faces, process=False), p143_ppm_pinna)
+    mirrored = p143_ppm_pinna.copy()
+    mirrored.vertices[:, 1] *= -1
+    with pytest.raises(StitchError, match="LEFT pinna"):
+        replace_pinna(p143_head, mirrored)
+    shifted = p143_ppm_pinna.copy()
+    shifted.apply_translation([0, 25, 0])
+    with pytest.raises(StitchError, match="rest on the head"):
+        replace_pinna(p143_head, shifted)
+    with pytest.raises(StitchError, match="millimetres"):
+        replace_pinna(p143_head, trimesh.Trimesh(p143_ppm_pinna.vertices / 1000, p143_ppm_pinna.faces))
+    (tmp_path / "empty.ply").write_bytes(b"")
+    with pytest.raises(StitchError, match="missing or empty"):
+        stitch_files(sonicom / "P143" / "head_graded_left.ply", tmp_path / "empty.ply", tmp_path / "out.ply",
+                     tmp_path / "out.json")
+    assert not (tmp_path / "out.ply").exists() and not (tmp_path / "out.json").exists()

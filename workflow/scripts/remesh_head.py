@@ -1,0 +1,16 @@
+"""Rule remesh: graded remeshing for BEM and the validation report."""
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(snakemake.scriptdir)))  # noqa: F821
+from _logging import configure_logging  # noqa: E402
+
+configure_logging(snakemake)  # noqa: F821
+
+from stitching.pipeline import remesh_files  # noqa: E402
+from stitching.remesh import Band  # noqa: E402
+
+bands = tuple(Band(float(b["up_to_mm"]) if b["up_to_mm"] is not None else float("inf"), b["edge_mm"],
+                   b["max_deviation_mm"]) for b in snakemake.params.bands)  # noqa: F821
+remesh_files(snakemake.input.mesh, snakemake.input.pinna, snakemake.output.mesh, snakemake.output.report,  # noqa: F821
+             bands)

@@ -75,10 +75,12 @@ def numcalc_step_mem_mb(wildcards, input, attempt):
     from mesh2hrtf_io.numcalc import NumCalcError, estimate_memory, find_numcalc
 
     source = Path(input.project) / "NumCalc" / f"source_{wildcards.source}"
+    if not (source / "NC.inp").is_file():  # not exported yet (dry run): a placeholder
+        return 2048
     try:
         estimates = estimate_memory(find_numcalc(config["hrtf"]["numcalc"] or None), source)
         gigabytes = next(e.memory_gb for e in estimates if e.step == int(wildcards.step))
-    except (NumCalcError, StopIteration):
+    except (NumCalcError, StopIteration, OSError):
         gigabytes = 2.0
     return int(1024 * max(gigabytes, 0.25) * 1.2 * (1 + 0.5 * (attempt - 1)))
 
@@ -88,6 +90,8 @@ def embedded_mem_mb(wildcards, input):
     from mesh2hrtf_io.bem import estimate_cost
     from mesh2hrtf_io.project_reader import read_project
 
+    if not (Path(input.project) / "parameters.json").is_file():  # not exported yet (dry run)
+        return 4096
     project = read_project(input.project)
     cost = estimate_cost(len(project.vertices_m), len(project.faces), len(project.evaluation_points_m))
     return int(1024 * cost.memory_gb_per_frequency * 1.3) + 1500

@@ -14,6 +14,7 @@ import trimesh
 from ppm.atomic import write_text_atomic
 from ppm.mesh_io import write_mesh
 
+from .ear_canal import ear_canal_elements
 from .errors import StitchError
 from .remesh import DEFAULT_BANDS, remesh_graded, repair_self_intersections
 from .replace_pinna import replace_pinna
@@ -59,6 +60,9 @@ def remesh_files(stitched_path: str | os.PathLike, pinna_path: str | os.PathLike
     stitched, pinna = _load(stitched_path, "stitched head"), _load(pinna_path, "pinna")
     mesh = repair_self_intersections(remesh_graded(stitched, np.asarray(pinna.vertices), bands))
     report = validate_head(mesh, pinna)
+    # the reciprocal sources for the exporter: ear-canal entrance faces of the final mesh
+    report["ear_elements"] = {side: ear_canal_elements(mesh, side, source=str(out_mesh)).tolist()
+                              for side in ("left", "right")}
     report.update(stitched=str(stitched_path), seconds=round(time.perf_counter() - start, 2),
                   bands=[{"up_to_mm": b.up_to_mm if np.isfinite(b.up_to_mm) else None, "edge_mm": b.edge_mm,
                           "max_deviation_mm": b.max_deviation_mm} for b in bands])

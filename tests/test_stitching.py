@@ -73,6 +73,7 @@ def test_fitted_ppm_pinna_gives_a_bem_ready_head(tmp_path, sonicom, p143_ppm_pin
     right = remeshed.vertices[:, 1].min()
     assert right == pytest.approx(trimesh.load(head_path, process=False).vertices[:, 1].min(), abs=2.0)
     left_ear = ear_canal_elements(remeshed, "left")
+    assert report["ear_elements"]["left"] == left_ear.tolist() and len(report["ear_elements"]["right"]) >= 1
     depth = remeshed.triangles_center[left_ear][:, 1].mean()
     assert 50 < depth < 80  # in the concha / canal entrance, not on the tragus or helix rim
     assert face_distance_to(p143_ppm_pinna.vertices, remeshed)[left_ear].min() < 1.0

@@ -11,6 +11,7 @@ from pathlib import Path
 from ppm.atomic import write_text_atomic
 
 from .errors import AmtBridgeError
+from .evaluation import compare_conditions, comparison_summary
 from .hrtf_set import read_hrtf_set
 from .model import LocalisationModel
 from .plots import save_error_bars, save_prediction_matrices
@@ -30,22 +31,19 @@ def _predict(args) -> dict:
 
 
 def _compare(args) -> dict:
-    reference = read_hrtf_set(args.reference)
-    self_model = LocalisationModel(reference, reference, args.lateral)
-    sensitivity = self_model.calibrate(args.qe)
-    predictions = {"reference": self_model.predict(sensitivity)}
+    conditions = {}
     for item in args.condition:
         name, _, path = item.partition("=")
         if not path:
             raise AmtBridgeError(f"condition {item!r}: write NAME=FILE.sofa")
-        predictions[name] = LocalisationModel(read_hrtf_set(path), reference, args.lateral).predict(sensitivity)
+        conditions[name] = path
+    sensitivity, predictions = compare_conditions(args.reference, conditions, args.qe, args.lateral)
     if args.bars:
         save_error_bars(predictions, args.bars, title=f"template: {Path(args.reference).name}")
     if args.matrix_dir:
         for name, prediction in predictions.items():
             save_prediction_matrices(prediction, Path(args.matrix_dir) / f"{name}_matrix.png", title=name)
-    return {"reference": str(args.reference), "calibration_qe_percent": args.qe, "sensitivity_db": sensitivity,
-            "conditions": {name: prediction.as_dict() for name, prediction in predictions.items()}}
+    return comparison_summary(args.reference, args.qe, sensitivity, predictions)
 
 
 def main(argv: list[str] | None = None) -> int:

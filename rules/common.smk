@@ -97,6 +97,14 @@ def embedded_mem_mb(wildcards, input):
     return int(1024 * cost.memory_gb_per_frequency * 1.3) + 1500
 
 
+def reference_sofa(wildcards):
+    """The reference listener's HRIRs: the dataset's own SOFA file when present, else computed."""
+    given = DATA_ROOT / wildcards.subject / config["localisation"]["reference_sofa"]
+    if given.is_file():
+        return str(given)
+    return f"results/{wildcards.subject}/hrtf/reference/HRIR_SagittalPlanes.sofa"
+
+
 def get_final_output():
     """Everything `snakemake --cores 2` makes: PPM pictures, and with a dataset the leave-one-subject-out
     templates, the alignment of every subject, and its head with the PPM pinna stitched in and remeshed
@@ -110,5 +118,5 @@ def get_final_output():
     out += [f"results/{s}/align/summary.json" for s in SUBJECTS]
     out += [f"results/{s}/remesh/validation.json" for s in SUBJECTS]
     if config["hrtf"]["enabled"]:
-        out += [f"results/{s}/hrtf/{v}/HRIR_SagittalPlanes.sofa" for s in SUBJECTS for v in HRTF_VARIANTS]
+        out += [f"results/{s}/localisation/qe_pe.json" for s in SUBJECTS]
     return out

@@ -103,3 +103,27 @@ def test_hrtf_rules_export_solve_and_collect_a_sphere_head(tmp_path):
     assert (work / "logs/hrtf/solve_embedded/S1_reference.log").is_file()
     again = _run([target, "-n", "--cores", "2", "--configfile", str(work / "config" / "test_hrtf.yaml")], work)
     assert "Nothing to be done" in again.stdout + again.stderr
+
+
+def test_localisation_rule_compares_ppm_and_reference_hrtfs(tmp_path, sonicom):
+    """The localisation rule on real HRIR sets standing in for the reference and the PPM head."""
+    import json
+
+    hrtf_data = sonicom.parent / "hrtf"
+    work = _copy_workflow(tmp_path)
+    subject = tmp_path / "data" / "S1"
+    subject.mkdir(parents=True)
+    trimesh.creation.icosphere(subdivisions=1, radius=80.0).export(subject / "pinna_left_crop.ply")
+    shutil.copy(hrtf_data / "measured_axd_example1.sofa", subject / "hrir_mesh2hrtf_48k.sofa")
+    ppm = work / "results" / "S1" / "hrtf" / "ppm" / "HRIR_SagittalPlanes.sofa"
+    ppm.parent.mkdir(parents=True)
+    shutil.copy(hrtf_data / "measured_axd_example2.sofa", ppm)
+    target = "results/S1/localisation/qe_pe.json"
+    done = _run([target, "--cores", "1", "--allowed-rules", "localisation", "--config",
+                 f"data_root={tmp_path / 'data'}"], work)
+    assert done.returncode == 0, (done.stdout + done.stderr)[-3000:]
+    summary = json.loads((work / target).read_text())
+    assert summary["conditions"]["reference"]["qe_percent"] == pytest.approx(8.0, abs=0.01)
+    assert summary["conditions"]["ppm"]["qe_percent"] > 15.0
+    for name in ("qe_pe_bars.png", "reference_matrix.png", "ppm_matrix.png"):
+        assert (work / "results/S1/localisation" / name).read_bytes()[:4] == b"\x89PNG"

@@ -1,0 +1,29 @@
+"""The paper's localisation comparison: S calibrated so that the reference listener's own HRTFs
+(target = template) give a chosen quadrant error rate (8 %), then each condition (e.g. the HRTFs of
+the PPM head) heard with the reference as template at that S."""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from .hrtf_set import read_hrtf_set
+from .model import LocalisationModel, Prediction
+
+
+def compare_conditions(reference: str | os.PathLike, conditions: dict[str, str | os.PathLike],
+                       qe_percent: float = 8.0, lateral_angles_deg=None) -> tuple[float, dict[str, Prediction]]:
+    """(S in dB, predictions by name; 'reference' first) for SOFA files of HRIRs or HRTFs."""
+    reference_set = read_hrtf_set(reference)
+    self_model = LocalisationModel(reference_set, reference_set, lateral_angles_deg)
+    sensitivity = self_model.calibrate(qe_percent)
+    predictions = {"reference": self_model.predict(sensitivity)}
+    for name, path in conditions.items():
+        predictions[name] = LocalisationModel(read_hrtf_set(path), reference_set, lateral_angles_deg).predict(sensitivity)
+    return sensitivity, predictions
+
+
+def comparison_summary(reference: str | os.PathLike, qe_percent: float, sensitivity: float,
+                       predictions: dict[str, Prediction]) -> dict:
+    """JSON-ready summary of :func:`compare_conditions`."""
+    return {"reference": str(Path(reference)), "calibration_qe_percent": qe_percent, "sensitivity_db": sensitivity,
+            "conditions": {name: prediction.as_dict() for name, prediction in predictions.items()}}

@@ -1,0 +1,25 @@
+# baumgartner2014: quadrant and polar errors predicted for the PPM head's HRTFs heard with the
+# reference listener's HRTFs as template, S calibrated on the reference (config localisation).
+
+
+rule localisation:
+    input:
+        reference=reference_sofa,
+        ppm="results/{subject}/hrtf/ppm/HRIR_SagittalPlanes.sofa",
+    output:
+        summary="results/{subject}/localisation/qe_pe.json",
+        bars="results/{subject}/localisation/qe_pe_bars.png",
+        reference_matrix="results/{subject}/localisation/reference_matrix.png",
+        ppm_matrix="results/{subject}/localisation/ppm_matrix.png",
+    log:
+        "logs/localisation/{subject}.log",
+    benchmark:
+        "benchmarks/timings/localisation/{subject}.tsv"
+    params:
+        settings=lambda wc: config["localisation"],
+    threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=10,
+    script:
+        "../workflow/scripts/localisation.py"

@@ -1,0 +1,24 @@
+"""Rule localisation: QE/PE of the PPM head's HRTFs against the reference listener (baumgartner2014)."""
+import json
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(snakemake.scriptdir)))  # noqa: F821
+from _logging import configure_logging  # noqa: E402
+
+configure_logging(snakemake)  # noqa: F821
+
+from amt_bridge.evaluation import compare_conditions, comparison_summary  # noqa: E402
+from amt_bridge.plots import save_error_bars, save_prediction_matrices  # noqa: E402
+from ppm.atomic import write_text_atomic  # noqa: E402
+
+settings = snakemake.params.settings  # noqa: F821
+out = snakemake.output  # noqa: F821
+sensitivity, predictions = compare_conditions(snakemake.input.reference, {"ppm": snakemake.input.ppm},  # noqa: F821
+                                              settings["calibration_qe_percent"], settings["lateral_angles_deg"])
+save_error_bars(predictions, out.bars, title=f"{snakemake.wildcards.subject}: reference vs PPM")  # noqa: F821
+save_prediction_matrices(predictions["reference"], out.reference_matrix, title="reference")
+save_prediction_matrices(predictions["ppm"], out.ppm_matrix, title="PPM")
+summary = comparison_summary(snakemake.input.reference, settings["calibration_qe_percent"], sensitivity,  # noqa: F821
+                             predictions)
+write_text_atomic(out.summary, json.dumps(summary, indent=2) + "\n")

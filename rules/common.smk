@@ -105,6 +105,15 @@ def reference_sofa(wildcards):
     return f"results/{wildcards.subject}/hrtf/reference/HRIR_SagittalPlanes.sofa"
 
 
+def subject_report_inputs(wildcards):
+    """Every per-subject result the report shows (the localisation only when HRTFs are computed)."""
+    base = f"results/{wildcards.subject}"
+    inputs = {"align": f"{base}/align/summary.json", "remesh": f"{base}/remesh/validation.json"}
+    if config["hrtf"]["enabled"]:
+        inputs["localisation"] = f"{base}/localisation/qe_pe.json"
+    return inputs
+
+
 def get_final_output():
     """Everything `snakemake --cores 2` makes: PPM pictures, and with a dataset the leave-one-subject-out
     templates, the alignment of every subject, and its head with the PPM pinna stitched in and remeshed
@@ -117,6 +126,8 @@ def get_final_output():
     ]
     out += [f"results/{s}/align/summary.json" for s in SUBJECTS]
     out += [f"results/{s}/remesh/validation.json" for s in SUBJECTS]
+    if SUBJECTS:
+        out += [f"results/{s}/report.html" for s in SUBJECTS] + ["results/dataset_report.html"]
     if config["hrtf"]["enabled"]:
         out += [f"results/{s}/localisation/qe_pe.json" for s in SUBJECTS]
     return out

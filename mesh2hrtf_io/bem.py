@@ -22,7 +22,10 @@ from .constants import EAR_VELOCITY_M_S
 from .errors import Mesh2HrtfIoError
 
 log = logging.getLogger(__name__)
-SECONDS_PER_ENTRY = 2.2e-6  # dense operator assembly, numba, 2 cores (refined by benchmarks/solve_cost.py)
+# dense operator assembly with numba on 2 cores: Mesh2HRTF's example head (8718 vertices, 152 million
+# entries) took 880-990 s per frequency and 4.3 GB of resident memory (benchmarks/example_head_embedded.py)
+SECONDS_PER_ENTRY = 5.8e-6
+MEMORY_OVERHEAD = 1.75  # resident memory / (16 bytes x dense entries): buffers, GMRES workspace
 EAR_SEGMENT = 1  # domain index of the vibrating (ear) elements
 
 
@@ -49,9 +52,9 @@ class CostEstimate:
 def estimate_cost(n_vertices: int, n_elements: int, n_points: int, n_ear_elements: int = 1) -> CostEstimate:
     """Dense Burton–Miller cost model: two dense P1 operators (double layer, hypersingular) of complex128,
     the right-hand side only on the ear elements, assembled with numba on a 2-core machine, plus the
-    evaluation at ``n_points``. Time constant measured on spheres (see benchmarks/solve_cost.py)."""
+    evaluation at ``n_points``. Constants measured on the example head (see SECONDS_PER_ENTRY)."""
     dense = 2 * n_vertices**2 + 2 * n_vertices * n_ear_elements
-    memory = 16.0 * (dense + n_points * (n_vertices + n_ear_elements)) / 1e9
+    memory = MEMORY_OVERHEAD * 16.0 * (dense + n_points * (n_vertices + n_ear_elements)) / 1e9
     seconds = SECONDS_PER_ENTRY * dense + 4e-8 * n_points * n_vertices + 2.0
     return CostEstimate(n_vertices, n_elements, round(memory, 3), round(seconds, 2))
 

@@ -76,7 +76,8 @@ def _hrtf_config(work: Path, data_root: Path, solver: str) -> Path:
 
 def test_hrtf_rules_export_solve_and_collect_a_sphere_head(tmp_path):
     """export_project -> solve_embedded -> collect_sofa on a 162-vertex sphere 'head' (2 frequencies, both
-    ears); with NumCalc as solver the DAG has one job per ear and frequency step."""
+    ears), killed after its first step and resumed; with NumCalc as solver the DAG has one job per ear
+    and frequency step."""
     import sofar
 
     work = _copy_workflow(tmp_path)
@@ -93,9 +94,29 @@ def test_hrtf_rules_export_solve_and_collect_a_sphere_head(tmp_path):
     for source in (1, 2):
         for step in (1, 2):
             assert f"results/S1/hrtf/reference/steps/source_{source}/step_{step}.json" in text
-    done = _run([target, "--cores", "2", "--configfile", str(_hrtf_config(work, tmp_path / "data", "embedded"))],
-                work, timeout=900)
+    # kill the run once the first frequency step is on disk, then rerun: finished steps are kept
+    import os
+    import signal
+    import time
+
+    config = str(_hrtf_config(work, tmp_path / "data", "embedded"))
+    first_step = work / "results/S1/hrtf/reference/project/NumCalc/source_1/be.out/be.1/pEvalGrid"
+    status = work / "results/S1/hrtf/reference/steps/embedded.json"
+    killed = subprocess.Popen(SNAKEMAKE + [target, "--cores", "2", "--configfile", config], cwd=work,
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    deadline = time.time() + 600
+    while not first_step.is_file() and time.time() < deadline and killed.poll() is None:
+        time.sleep(0.5)
+    os.killpg(killed.pid, signal.SIGKILL)
+    killed.wait()
+    assert first_step.is_file() and not status.exists()  # no declared output of the killed job
+    assert not list(status.parent.glob("*.partial*")) if status.parent.exists() else True
+    assert _run([target, "--unlock", "--configfile", config], work).returncode == 0  # a SIGKILL leaves the lock
+    done = _run([target, "--cores", "2", "--rerun-incomplete", "--configfile", config], work, timeout=900)
     assert done.returncode == 0, done.stderr[-3000:]
+    import json
+
+    assert json.loads(status.read_text())["steps_solved"] == 3  # step 1 of the left ear was not redone
     hrir = sofar.read_sofa(str(work / target), verify=True)
     assert hrir.GLOBAL_SOFAConventions == "SimpleFreeFieldHRIR" and hrir.Data_IR.shape[1:] == (2, 4)
     hrtf = sofar.read_sofa(str(work / "results/S1/hrtf/reference/HRTF_SagittalPlanes.sofa"), verify=True)

@@ -4,7 +4,7 @@ coarser with distance, in the spirit of Mesh2HRTF's distance-based grading.
 pymeshlab's isotropic explicit remeshing is applied band by band (finest first) to the faces whose
 centroids lie in each distance band from the pinna, with the allowed surface deviation set
 explicitly (never pymeshlab's size-relative default). A band whose edges already have the target
-length (within ±25 %) is left as it is, so an already graded head keeps its far field.
+length (within ±25 %) is left as it is, so an already graded head keeps those parts.
 """
 from __future__ import annotations
 
@@ -55,14 +55,12 @@ def remesh_graded(mesh: trimesh.Trimesh, pinna_points_mm: np.ndarray, bands=DEFA
         lower = band.up_to_mm
         if not selected.any():
             continue
-        edges = current.edges_unique
         face_edges = current.faces_unique_edges[selected].ravel()
         median_edge = float(np.median(current.edges_unique_length[np.unique(face_edges)]))
         if abs(median_edge / band.edge_mm - 1) <= 0.25:
             log.info("band < %.0f mm: median edge %.2f mm already near %.1f mm; kept", band.up_to_mm, median_edge,
                      band.edge_mm)
             continue
-        del edges
         ms = pymeshlab.MeshSet()
         ms.add_mesh(pymeshlab.Mesh(vertex_matrix=np.asarray(current.vertices, np.float64),
                                    face_matrix=np.asarray(current.faces, np.int32),

@@ -46,15 +46,19 @@ def export_head_project(head_path: str | os.PathLike, project: str | os.PathLike
              layout.ear_ranges, len(frequencies))
 
 
-def solve_numcalc_step(project: str | os.PathLike, source: int, step: int, status_path: str | os.PathLike,
-                       numcalc: str | None, max_iterations: int) -> None:
-    """Run one NumCalc step (skipped when already complete) and write its status JSON."""
+def solve_numcalc_steps(project: str | os.PathLike, source: int, steps, status_path: str | os.PathLike,
+                        numcalc: str | None, max_iterations: int) -> None:
+    """Run NumCalc for ``steps`` (1-based; complete ones are skipped) and write their status JSON."""
     from .numcalc import find_numcalc, run_step  # noqa: PLC0415
 
     folder = Path(project) / "NumCalc" / f"source_{source}"
     points = len(read_project(project).evaluation_points_m)
-    status = run_step(find_numcalc(numcalc), folder, step, points, max_iterations)
-    write_text_atomic(status_path, json.dumps(status, indent=2) + "\n")
+    binary = find_numcalc(numcalc)
+    statuses = []
+    for step in steps:
+        statuses.append(run_step(binary, folder, step, points, max_iterations))
+        log.info("source_%d step %d done (%d of %d in this job)", source, step, len(statuses), len(steps))
+    write_text_atomic(status_path, json.dumps({"steps": statuses}, indent=2) + "\n")
 
 
 def solve_embedded(project: str | os.PathLike, status_path: str | os.PathLike) -> None:

@@ -27,7 +27,8 @@ wildcard_constraints:
     subject="|".join(SUBJECTS) if SUBJECTS else "[A-Za-z0-9_-]+",
     variant="reference|ppm",
     source="[12]",
-    step="[0-9]+",
+    first="[0-9]+",
+    last="[0-9]+",
 
 
 def template_params():
@@ -67,11 +68,13 @@ def solved_steps(wildcards):
     base = f"results/{wildcards.subject}/hrtf/{wildcards.variant}/steps"
     if config["hrtf"]["solver"] == "embedded":
         return [f"{base}/embedded.json"]
-    return [f"{base}/source_{s}/step_{k}.json" for s in hrtf_sources() for k in range(1, len(hrtf_frequencies()) + 1)]
+    n_steps, per_job = len(hrtf_frequencies()), config["hrtf"]["steps_per_job"]
+    ranges = [(k, min(k + per_job - 1, n_steps)) for k in range(1, n_steps + 1, per_job)]
+    return [f"{base}/source_{s}/steps_{a}-{b}.json" for s in hrtf_sources() for a, b in ranges]
 
 
 def numcalc_step_mem_mb(wildcards, input, attempt):
-    """Memory of one NumCalc step from `NumCalc -estimate_ram` (Memory.txt), +50 % per retry."""
+    """Memory of a NumCalc job (its largest step) from `NumCalc -estimate_ram`, +50 % per retry."""
     from mesh2hrtf_io.numcalc import NumCalcError, estimate_memory, find_numcalc
 
     source = Path(input.project) / "NumCalc" / f"source_{wildcards.source}"
@@ -79,8 +82,9 @@ def numcalc_step_mem_mb(wildcards, input, attempt):
         return 2048
     try:
         estimates = estimate_memory(find_numcalc(config["hrtf"]["numcalc"] or None), source)
-        gigabytes = next(e.memory_gb for e in estimates if e.step == int(wildcards.step))
-    except (NumCalcError, StopIteration, OSError):
+        steps = range(int(wildcards.first), int(wildcards.last) + 1)
+        gigabytes = max(e.memory_gb for e in estimates if e.step in steps)
+    except (NumCalcError, ValueError, OSError):
         gigabytes = 2.0
     return int(1024 * max(gigabytes, 0.25) * 1.2 * (1 + 0.5 * (attempt - 1)))
 

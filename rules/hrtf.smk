@@ -1,5 +1,6 @@
-# HRTFs of head meshes: Mesh2HRTF project export, solving (NumCalc one job per ear and frequency
-# step, or the embedded solver one job per project), and collection into SOFA files.
+# HRTFs of head meshes: Mesh2HRTF project export, solving (NumCalc one job per ear and range of
+# frequency steps, hrtf.steps_per_job long, or the embedded solver one job per project), and
+# collection into SOFA files.
 # Variants: "reference" = the dataset's ground-truth head (<subject>/head_graded_left.ply).
 
 
@@ -26,18 +27,18 @@ rule solve_numcalc_step:
     input:
         project="results/{subject}/hrtf/{variant}/project",
     output:
-        status="results/{subject}/hrtf/{variant}/steps/source_{source}/step_{step}.json",
+        status="results/{subject}/hrtf/{variant}/steps/source_{source}/steps_{first}-{last}.json",
     log:
-        "logs/hrtf/solve_numcalc_step/{subject}_{variant}_{source}_{step}.log",
+        "logs/hrtf/solve_numcalc_step/{subject}_{variant}_{source}_{first}-{last}.log",
     benchmark:
-        "benchmarks/timings/hrtf/solve_numcalc_step/{subject}_{variant}_{source}_{step}.tsv"
+        "benchmarks/timings/hrtf/solve_numcalc_step/{subject}_{variant}_{source}_{first}-{last}.tsv"
     params:
         numcalc=lambda wc: config["hrtf"]["numcalc"],
         max_iterations=lambda wc: config["hrtf"]["max_iterations"],
     threads: 1
     resources:
         mem_mb=numcalc_step_mem_mb,
-        runtime=lambda wc: config["hrtf"]["step_runtime_min"],
+        runtime=lambda wc: config["hrtf"]["step_runtime_min"] * (int(wc.last) - int(wc.first) + 1),
     script:
         "../workflow/scripts/solve_numcalc_step.py"
 

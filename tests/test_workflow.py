@@ -62,13 +62,13 @@ def test_default_run_makes_the_ppm_pictures_blend_and_parameters(tmp_path):
     assert "Nothing to be done" in again.stdout + again.stderr
 
 
-def _hrtf_config(work: Path, data_root: Path, solver: str) -> Path:
+def _hrtf_config(work: Path, data_root: Path, solver: str, steps_per_job: int = 1) -> Path:
     import yaml
 
     config = yaml.safe_load((work / "config" / "config.yaml").read_text())
     config["data_root"] = str(data_root)
     config["hrtf"].update(solver=solver, frequencies_hz={"min": 250.0, "max": 500.0, "step": 250.0},
-                          polar_step_deg=10.0)
+                          polar_step_deg=10.0, steps_per_job=steps_per_job)
     path = work / "config" / "test_hrtf.yaml"
     path.write_text(yaml.safe_dump(config))
     return path
@@ -93,7 +93,10 @@ def test_hrtf_rules_export_solve_and_collect_a_sphere_head(tmp_path):
     text = planned.stdout + planned.stderr
     for source in (1, 2):
         for step in (1, 2):
-            assert f"results/S1/hrtf/reference/steps/source_{source}/step_{step}.json" in text
+            assert f"results/S1/hrtf/reference/steps/source_{source}/steps_{step}-{step}.json" in text
+    grouped = _run([target, "-n", "--cores", "2", "--configfile",
+                    str(_hrtf_config(work, tmp_path / "data", "numcalc", steps_per_job=2))], work)
+    assert "steps/source_2/steps_1-2.json" in grouped.stdout + grouped.stderr  # one job for both steps
     # kill the run once the first frequency step is on disk, then rerun: finished steps are kept
     import os
     import signal

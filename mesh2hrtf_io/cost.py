@@ -2,7 +2,7 @@
 
 Embedded solver: the dense Burton–Miller model of :func:`mesh2hrtf_io.bem.estimate_cost`.
 NumCalc: memory per step from ``NumCalc -estimate_ram`` when a binary is available; time from a
-multilevel-FMM model, t = a · NE · (1 + (f / f_ref)^2) seconds per step and ear, whose constant was
+multilevel-FMM model, t = a · NE · (1 + (f / f_ref)^2) seconds per step and ear, whose constants were
 measured on this machine (benchmarks/solve_cost.py prints measured against predicted).
 """
 from __future__ import annotations
@@ -16,8 +16,10 @@ import numpy as np
 from .bem import estimate_cost
 from .project_reader import read_project
 
-NUMCALC_SECONDS_PER_ELEMENT = 2.0e-3   # at low frequency, per step and ear (measured, 2-core VM)
-NUMCALC_REFERENCE_FREQUENCY_HZ = 8000.0  # above it, iterations and near-field work grow with f^2
+# NumCalc 1.2.4 on this 2-core VM, Mesh2HRTF's example head (17,432 elements, 216 grid points, one ear):
+# 34.1 s at 1 kHz, 39.0 s at 4 kHz, 39.8 s at 8 kHz per step (benchmarks/solve_cost.py)
+NUMCALC_SECONDS_PER_ELEMENT = 1.95e-3   # at low frequency, per step and ear
+NUMCALC_REFERENCE_FREQUENCY_HZ = 20000.0  # iterations and near-field work grow with (f / f_ref)^2
 
 
 @dataclasses.dataclass(frozen=True)

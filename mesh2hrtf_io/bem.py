@@ -25,7 +25,8 @@ log = logging.getLogger(__name__)
 # dense operator assembly with numba on 2 cores: Mesh2HRTF's example head (8718 vertices, 152 million
 # entries) took 880-990 s per frequency and 4.3 GB of resident memory (benchmarks/example_head_embedded.py)
 SECONDS_PER_ENTRY = 5.8e-6
-MEMORY_OVERHEAD = 1.75  # resident memory / (16 bytes x dense entries): buffers, GMRES workspace
+MEMORY_OVERHEAD = 1.75  # resident memory / (16 bytes x dense entries): buffers, LU workspace
+LU_SECONDS_PER_CUBE = 1e-10  # dense complex LU factorisation (LAPACK), per vertex count cubed
 EAR_SEGMENT = 1  # domain index of the vibrating (ear) elements
 
 
@@ -51,17 +52,17 @@ class CostEstimate:
 
 def estimate_cost(n_vertices: int, n_elements: int, n_points: int, n_ear_elements: int = 1) -> CostEstimate:
     """Dense Burton–Miller cost model: two dense P1 operators (double layer, hypersingular) of complex128,
-    the right-hand side only on the ear elements, assembled with numba on a 2-core machine, plus the
-    evaluation at ``n_points``. Constants measured on the example head (see SECONDS_PER_ENTRY)."""
+    the right-hand side only on the ear elements, assembled with numba on a 2-core machine, an LU
+    factorisation, plus the evaluation at ``n_points``. Constants measured on the example head (see SECONDS_PER_ENTRY)."""
     dense = 2 * n_vertices**2 + 2 * n_vertices * n_ear_elements
     memory = MEMORY_OVERHEAD * 16.0 * (dense + n_points * (n_vertices + n_ear_elements)) / 1e9
-    seconds = SECONDS_PER_ENTRY * dense + 4e-8 * n_points * n_vertices + 2.0
+    seconds = SECONDS_PER_ENTRY * dense + LU_SECONDS_PER_CUBE * n_vertices**3 + 4e-8 * n_points * n_vertices + 2.0
     return CostEstimate(n_vertices, n_elements, round(memory, 3), round(seconds, 2))
 
 
 def solve_pressure(vertices_m: np.ndarray, faces: np.ndarray, ear_elements: np.ndarray, points_m: np.ndarray,
                    frequency_hz: float, speed_of_sound_m_s: float, density_kg_m3: float,
-                   velocity_m_s: float = EAR_VELOCITY_M_S, tolerance: float = 1e-6) -> np.ndarray:
+                   velocity_m_s: float = EAR_VELOCITY_M_S) -> np.ndarray:
     """Complex sound pressure (Pa, e^{-iωt}) at `points_m` (n, 3) radiated by the vibrating ear elements.
 
     Parameters
@@ -75,37 +76,63 @@ def solve_pressure(vertices_m: np.ndarray, faces: np.ndarray, ear_elements: np.n
     points_m : (n, 3) float
         Evaluation points in metres, outside the head.
     """
+    return solve_sources(vertices_m, faces, [(ear_elements, velocity_m_s)], points_m, frequency_hz,
+                         speed_of_sound_m_s, density_kg_m3)[0]
+
+
+def solve_sources(vertices_m: np.ndarray, faces: np.ndarray, sources: list[tuple[np.ndarray, float]],
+                  points_m: np.ndarray, frequency_hz: float, speed_of_sound_m_s: float,
+                  density_kg_m3: float) -> list[np.ndarray]:
+    """Pressure (Pa, e^{-iωt}) at `points_m` for each source, a source being (ear element indices, normal
+    velocity in m/s); the sources are solved one at a time as in Mesh2HRTF (reciprocity: one per ear).
+
+    The Burton-Miller system matrix does not depend on the source: it is assembled and LU-factorised
+    once per frequency and applied to every source's right-hand side (a direct solve: no iteration that
+    could stall at high frequencies on coarse meshes).
+    """
+    import scipy.linalg  # noqa: PLC0415
+
     bempp = _bempp()
     from bempp_cl.api.operators.boundary import helmholtz, sparse  # noqa: PLC0415
     from bempp_cl.api.operators.potential import helmholtz as helmholtz_potential  # noqa: PLC0415
 
     k = 2.0 * np.pi * frequency_hz / speed_of_sound_m_s
-    # the vibrating elements form segment 1; the prescribed velocity lives only there, so the right-hand
-    # side operators are (vertices x ear elements) instead of dense (vertices x elements)
+    # each source's vibrating elements form a segment of their own (1, 2, ...); the prescribed velocity lives
+    # only there, so the right-hand side operators are (vertices x ear elements), not dense
     segments = np.zeros(len(faces), dtype=np.uint32)
-    segments[np.asarray(ear_elements)] = EAR_SEGMENT
+    for index, (elements, _) in enumerate(sources):
+        if np.any(segments[np.asarray(elements)]):
+            raise Mesh2HrtfIoError("two sources share vibrating elements; give each ear its own elements")
+        segments[np.asarray(elements)] = EAR_SEGMENT + index
     grid = bempp.Grid(np.asarray(vertices_m, np.float64).T.copy(), np.asarray(faces, np.uint32).T.copy(),
                       domain_indices=segments)
     p1 = bempp.function_space(grid, "P", 1)
-    dp0 = bempp.function_space(grid, "DP", 0, segments=[EAR_SEGMENT])
-    # Euler's equation with e^{-iωt}: dp/dn = iωρ v_n on the vibrating elements, 0 elsewhere (rigid)
-    neumann = bempp.GridFunction(dp0, coefficients=np.full(dp0.global_dof_count, 1j * 2.0 * np.pi * frequency_hz
-                                                           * density_kg_m3 * velocity_m_s, dtype=np.complex128))
     coupling = 1j / k  # Burton-Miller coupling for outgoing e^{ikr} waves
+    start = time.perf_counter()
     lhs = (0.5 * sparse.identity(p1, p1, p1) - helmholtz.double_layer(p1, p1, p1, k)
            + coupling * helmholtz.hypersingular(p1, p1, p1, k))
-    rhs_operator = -(helmholtz.single_layer(dp0, p1, p1, k)
-                     + coupling * (0.5 * sparse.identity(dp0, p1, p1) + helmholtz.adjoint_double_layer(dp0, p1, p1, k)))
-    rhs = rhs_operator * neumann
-    start = time.perf_counter()
-    surface_pressure, info = bempp.linalg.gmres(lhs, rhs, tol=tolerance, maxiter=500)
-    if info != 0:
-        raise Mesh2HrtfIoError(f"GMRES did not converge at {frequency_hz:g} Hz (info {info})")
+    factors = scipy.linalg.lu_factor(lhs.weak_form().to_dense(), overwrite_a=True, check_finite=False)
     points = np.asarray(points_m, np.float64).T.copy()
-    field = (helmholtz_potential.double_layer(p1, points, k) * surface_pressure
-             - helmholtz_potential.single_layer(dp0, points, k) * neumann)
-    log.info("%.0f Hz: solved %d unknowns in %.1f s", frequency_hz, p1.global_dof_count, time.perf_counter() - start)
-    return np.asarray(field).ravel()
+    double_layer_potential = helmholtz_potential.double_layer(p1, points, k)
+    pressures = []
+    for index, (_, velocity_m_s) in enumerate(sources):
+        dp0 = bempp.function_space(grid, "DP", 0, segments=[EAR_SEGMENT + index])
+        # Euler's equation with e^{-iωt}: dp/dn = iωρ v_n on the vibrating elements, 0 elsewhere (rigid)
+        neumann = bempp.GridFunction(dp0, coefficients=np.full(dp0.global_dof_count, 1j * 2.0 * np.pi * frequency_hz
+                                                               * density_kg_m3 * velocity_m_s, dtype=np.complex128))
+        rhs_operator = -(helmholtz.single_layer(dp0, p1, p1, k)
+                         + coupling * (0.5 * sparse.identity(dp0, p1, p1)
+                                       + helmholtz.adjoint_double_layer(dp0, p1, p1, k)))
+        coefficients = scipy.linalg.lu_solve(factors, (rhs_operator * neumann).projections(p1), check_finite=False)
+        if not np.isfinite(coefficients).all():
+            raise Mesh2HrtfIoError(f"the BEM system at {frequency_hz:g} Hz is singular (degenerate mesh?)")
+        surface_pressure = bempp.GridFunction(p1, coefficients=coefficients)
+        field = (double_layer_potential * surface_pressure
+                 - helmholtz_potential.single_layer(dp0, points, k) * neumann)
+        pressures.append(np.asarray(field).ravel())
+    log.info("%.0f Hz: solved %d unknowns for %d source(s) in %.1f s", frequency_hz, p1.global_dof_count,
+             len(sources), time.perf_counter() - start)
+    return pressures
 
 
 def free_field_reference(points_m: np.ndarray, frequency_hz: float, source_area_m2: float,

@@ -18,7 +18,7 @@ from .project_reader import read_project
 
 # NumCalc 1.2.4 on this 2-core VM, Mesh2HRTF's example head (17,432 elements, 216 grid points, one ear):
 # 34.1 s at 1 kHz, 39.0 s at 4 kHz, 39.8 s at 8 kHz per step (benchmarks/solve_cost.py)
-NUMCALC_SECONDS_PER_ELEMENT = 1.95e-3   # at low frequency, per step and ear
+NUMCALC_SECONDS_PER_ELEMENT = 0.9e-3   # at low frequency, per step and ear
 NUMCALC_REFERENCE_FREQUENCY_HZ = 20000.0  # iterations and near-field work grow with (f / f_ref)^2
 
 

@@ -12,7 +12,7 @@ import time
 
 import numpy as np
 
-from .bem import estimate_cost, solve_pressure
+from .bem import estimate_cost, solve_sources
 from .project_reader import Project, read_project
 from .results import missing_steps, write_eval_grid_pressure
 
@@ -38,23 +38,29 @@ def solve_project_embedded(folder: str | os.PathLike, steps: list[int] | None = 
     todo = {source.folder: [s for s in missing_steps(source.folder, n_steps, len(points)) if s in wanted]
             for source in project.sources}
     total = sum(len(v) for v in todo.values())
+    steps_todo = sorted({step for steps_of_source in todo.values() for step in steps_of_source})
     log.info("embedded solver: %d vertices, %d elements, %d evaluation points; estimate %.0f s and %.2f GB per "
-             "step; %d step(s) to solve (%.1f min)", len(project.vertices_m), len(project.faces), len(points),
-             cost.seconds_per_frequency, cost.memory_gb_per_frequency, total, total * cost.seconds_per_frequency / 60)
+             "frequency (all sources of a frequency share one factorised matrix); %d source step(s) at %d frequencies to "
+             "solve (%.1f min)", len(project.vertices_m), len(project.faces), len(points), cost.seconds_per_frequency,
+             cost.memory_gb_per_frequency, total, len(steps_todo), len(steps_todo) * cost.seconds_per_frequency / 60)
     measured, done = [], 0
-    for source in project.sources:
-        for step in todo[source.folder]:
-            frequency = float(project.frequencies_hz[step - 1])
-            start = time.perf_counter()
-            pressure = solve_pressure(project.vertices_m, project.faces, source.elements, points, frequency,
-                                      project.speed_of_sound_m_s, project.density_kg_m3, source.velocity_m_s)
+    for step in steps_todo:
+        # every source missing this step is solved with the same factorised system matrix
+        sources = [source for source in project.sources if step in todo[source.folder]]
+        frequency = float(project.frequencies_hz[step - 1])
+        start = time.perf_counter()
+        pressures = solve_sources(project.vertices_m, project.faces,
+                                  [(source.elements, source.velocity_m_s) for source in sources], points, frequency,
+                                  project.speed_of_sound_m_s, project.density_kg_m3)
+        for source, pressure in zip(sources, pressures):
             write_eval_grid_pressure(source.folder, step, node_ids, pressure,
                                      f"Mesh2HRTF {project.parameters.get('Mesh2HRTF_Version', '1.2.4')}")
-            measured.append(time.perf_counter() - start)
-            done += 1
-            remaining = (total - done) * float(np.mean(measured))
-            log.info("%s step %d (%.0f Hz): %.1f s; %d/%d done, about %.1f min left", source.folder.name, step,
-                     frequency, measured[-1], done, total, remaining / 60)
+        elapsed = time.perf_counter() - start
+        measured += [elapsed / len(sources)] * len(sources)
+        done += len(sources)
+        remaining = (total - done) * float(np.mean(measured))
+        log.info("step %d (%.0f Hz), %s: %.1f s; %d/%d source steps done, about %.1f min left", step, frequency,
+                 " + ".join(source.folder.name for source in sources), elapsed, done, total, remaining / 60)
     return {"steps_solved": done, "estimated_seconds_per_step": cost.seconds_per_frequency,
             "estimated_memory_gb": cost.memory_gb_per_frequency,
             "measured_seconds_per_step": float(np.mean(measured)) if measured else None}

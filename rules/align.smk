@@ -2,10 +2,30 @@
 # that subject (leave-one-subject-out).
 
 
-rule align_ppm:
+rule prepare_target:
     input:
         scan=lambda wc: str(DATA_ROOT / wc.subject / "pinna_left_crop.ply"),
-        template="results/templates/without_{subject}/template_left.ply",
+    output:
+        target="results/{subject}/target/pinna_target.ply",
+        report="results/{subject}/target/target.json",
+    log:
+        "logs/align/prepare_target/{subject}.log",
+    benchmark:
+        "benchmarks/timings/align/prepare_target/{subject}.tsv"
+    params:
+        settings=lambda wc: config["align"],
+    threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=10,
+    script:
+        "../workflow/scripts/prepare_target.py"
+
+
+rule align_ppm:
+    input:
+        target="results/{subject}/target/pinna_target.ply",
+        template=align_template,
     output:
         parameters_csv="results/{subject}/align/parameters.csv",
         parameters_json="results/{subject}/align/parameters.json",
@@ -18,8 +38,6 @@ rule align_ppm:
         "logs/align/align_ppm/{subject}.log",
     benchmark:
         "benchmarks/timings/align/align_ppm/{subject}.tsv"
-    params:
-        settings=lambda wc: config["align"],
     threads: 1
     resources:
         mem_mb=3000,

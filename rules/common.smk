@@ -5,30 +5,73 @@ from snakemake.utils import validate
 
 validate(config, "../config/schema.yaml")
 
-DATA_ROOT = Path(config["data_root"]) if config["data_root"] else None
-if DATA_ROOT is not None and not DATA_ROOT.is_dir():
-    raise ValueError(
-        f"config key data_root={config['data_root']!r}: no such folder; give a dataset folder of "
-        "<subject>/pinna_left_crop.ply, or leave data_root empty for the bundled default"
-    )
-SUBJECTS = (
-    sorted(p.name for p in DATA_ROOT.iterdir() if (p / "pinna_left_crop.ply").is_file())
-    if DATA_ROOT is not None
-    else []
-)
-if DATA_ROOT is not None and not SUBJECTS:
-    raise ValueError(
-        f"config key data_root={config['data_root']!r}: no <subject>/pinna_left_crop.ply under it; "
-        "point data_root to a dataset folder or leave it empty for the bundled default"
-    )
+DEMO = not config["data_root"]
+
+
+def _demo_overrides():
+    """With no dataset, the demo's hrtf keys and remeshing bands replace the general ones (and are checked)."""
+    config["hrtf"].update(config["demo"]["hrtf"])
+    config["stitch"]["bands"] = config["demo"]["bands"]
+    validate(config, "../config/schema.yaml")
+
+
+def _subjects_of(data_root: Path) -> list[str]:
+    """Subjects of a dataset folder: every <subject>/pinna_left_crop.ply, narrowed by config subjects_table."""
+    found = sorted(p.name for p in data_root.iterdir() if (p / "pinna_left_crop.ply").is_file())
+    if not found:
+        raise ValueError(
+            f"config key data_root={config['data_root']!r}: no <subject>/pinna_left_crop.ply under it; "
+            "point data_root to a dataset folder or leave it empty for the demo"
+        )
+    if not config["subjects_table"]:
+        return found
+    from ppm.dataset import read_subjects_table
+
+    wanted = read_subjects_table(config["subjects_table"])
+    unknown = [s for s in wanted if s not in found]
+    if unknown:
+        raise ValueError(
+            f"config key subjects_table={config['subjects_table']!r}: subject(s) {', '.join(unknown)} have no "
+            f"pinna_left_crop.ply under data_root={config['data_root']!r}; known: {', '.join(found)}"
+        )
+    return wanted
+
+
+if DEMO:
+    _demo_overrides()
+    DATA_ROOT = Path("results/demo_data")
+    SUBJECTS = [f"demo{i:02d}" for i in range(1, config["demo"]["subjects"] + 1)]
+else:
+    DATA_ROOT = Path(config["data_root"])
+    if not DATA_ROOT.is_dir():
+        raise ValueError(
+            f"config key data_root={config['data_root']!r}: no such folder; give a dataset folder of "
+            "<subject>/pinna_left_crop.ply, or leave data_root empty for the demo"
+        )
+    SUBJECTS = _subjects_of(DATA_ROOT)
 
 
 wildcard_constraints:
-    subject="|".join(SUBJECTS) if SUBJECTS else "[A-Za-z0-9_-]+",
+    subject="|".join(SUBJECTS),
     variant="reference|ppm",
     source="[12]",
     first="[0-9]+",
     last="[0-9]+",
+
+
+def demo_seed(wildcards) -> int:
+    """Random seed of a demo subject: config demo.seed for demo01, + 1 for each next one."""
+    return config["demo"]["seed"] + SUBJECTS.index(wildcards.subject)
+
+
+def align_template(wildcards) -> str:
+    """The template a subject is fitted with: built without that subject from the dataset, or, for the
+    demo (whose ears are made by the packaged PPM), the packaged template."""
+    if DEMO:
+        from ppm.template.store import default_template_dir
+
+        return str(default_template_dir() / "template_left.ply")
+    return f"results/templates/without_{wildcards.subject}/template_left.ply"
 
 
 def template_params():
@@ -50,8 +93,6 @@ def hrtf_frequencies():
 def hrtf_head_mesh(wildcards):
     """The head mesh (mm) whose HRTFs the variant stands for."""
     if wildcards.variant == "reference":
-        if DATA_ROOT is None:
-            raise ValueError("HRTFs of reference heads need config key data_root (a dataset with head meshes)")
         return str(DATA_ROOT / wildcards.subject / config["hrtf"]["reference_head"])
     if wildcards.variant == "ppm":
         return f"results/{wildcards.subject}/remesh/head.ply"
@@ -119,9 +160,10 @@ def subject_report_inputs(wildcards):
 
 
 def get_final_output():
-    """Everything `snakemake --cores 2` makes: PPM pictures, and with a dataset the leave-one-subject-out
-    templates, the alignment of every subject, and its head with the PPM pinna stitched in and remeshed
-    (plus, with hrtf.enabled, the HRTFs of the reference and the PPM heads)."""
+    """Everything `snakemake --cores 2` makes: PPM pictures; per subject (demo or dataset) the alignment,
+    the head with the PPM pinna stitched in and remeshed, and the report; with hrtf.enabled (always in
+    the demo) the HRTFs of the reference and PPM heads and their localisation comparison; the dataset
+    report."""
     out = [
         "results/ppm/default_ppm.png",
         "results/ppm/range_sheet.png",
@@ -130,8 +172,7 @@ def get_final_output():
     ]
     out += [f"results/{s}/align/summary.json" for s in SUBJECTS]
     out += [f"results/{s}/remesh/validation.json" for s in SUBJECTS]
-    if SUBJECTS:
-        out += [f"results/{s}/report.html" for s in SUBJECTS] + ["results/dataset_report.html"]
     if config["hrtf"]["enabled"]:
         out += [f"results/{s}/localisation/qe_pe.json" for s in SUBJECTS]
+    out += [f"results/{s}/report.html" for s in SUBJECTS] + ["results/dataset_report.html"]
     return out

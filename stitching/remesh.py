@@ -32,6 +32,12 @@ class Band:
 DEFAULT_BANDS = (Band(12.0, 1.0, 0.05), Band(30.0, 2.0, 0.1), Band(60.0, 3.5, 0.3), Band(np.inf, 6.0, 0.5))
 
 
+def bands_from_config(bands: list[dict]) -> tuple[Band, ...]:
+    """Bands from config entries {up_to_mm (None: the rest of the head), edge_mm, max_deviation_mm}."""
+    return tuple(Band(float("inf") if b["up_to_mm"] is None else float(b["up_to_mm"]), float(b["edge_mm"]),
+                      float(b["max_deviation_mm"])) for b in bands)
+
+
 def _pymeshlab():
     import pymeshlab  # noqa: PLC0415  (imported late: after bpy where both are used)
 

@@ -138,3 +138,19 @@ def target_from_mesh(mesh: trimesh.Trimesh, source: str) -> Target:
     for message in warnings:
         log.warning("%s: %s", source, message)
     return Target(points, normals[keep], mesh, source, tuple(warnings))
+
+
+def write_target(target: Target, mesh_path: str | os.PathLike, report_path: str | os.PathLike) -> dict:
+    """Write the prepared pinna surface (mm, left ear, project frame; outliers still in the mesh, they are
+    found again when it is read) and a JSON report of the preparation. Both atomically."""
+    import json  # noqa: PLC0415
+
+    from ..atomic import write_text_atomic  # noqa: PLC0415
+    from ..mesh_io import write_mesh  # noqa: PLC0415
+
+    report = {"source": target.source, "n_points": int(len(target.points_mm)),
+              "n_mesh_vertices": int(len(target.mesh.vertices)), "hole_share": round(hole_share(target.mesh), 4),
+              "extent_mm": np.ptp(target.points_mm, axis=0).round(2).tolist(), "warnings": list(target.warnings)}
+    write_mesh(mesh_path, target.mesh.vertices, target.mesh.faces)
+    write_text_atomic(report_path, json.dumps(report, indent=2) + "\n")
+    return report

@@ -1,4 +1,4 @@
-"""Rule align_ppm: fit the PPM (leave-one-subject-out template) to a subject's left pinna scan."""
+"""Rule align_ppm: fit the PPM (leave-one-subject-out template) to a subject's prepared left pinna scan."""
 import sys
 from pathlib import Path
 
@@ -14,10 +14,9 @@ from ppm.align.report import one_sided_distances_mm, write_alignment  # noqa: E4
 from ppm.model import PinnaModel  # noqa: E402
 from ppm.render import render_distance_map  # noqa: E402
 
-settings = snakemake.params.settings  # noqa: F821
 out_dir = Path(snakemake.output.summary).parent  # noqa: F821
 model = PinnaModel.from_template(Path(snakemake.input.template).parent)  # noqa: F821
-target = prepare_target(snakemake.input.scan, side="left", margin_mm=settings["target_margin_mm"])  # noqa: F821
+target = prepare_target(snakemake.input.target, side="left", segment=False)  # noqa: F821  (prepared already)
 result = align(model, target)
 write_alignment(out_dir, model, target, result, extra={"template": snakemake.input.template})  # noqa: F821
 distance = one_sided_distances_mm(target, result.vertices_mm, model.faces)

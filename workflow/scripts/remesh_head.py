@@ -8,9 +8,8 @@ from _logging import configure_logging  # noqa: E402
 configure_logging(snakemake)  # noqa: F821
 
 from stitching.pipeline import remesh_files  # noqa: E402
-from stitching.remesh import Band  # noqa: E402
+from stitching.remesh import bands_from_config  # noqa: E402
 
-bands = tuple(Band(float(b["up_to_mm"]) if b["up_to_mm"] is not None else float("inf"), b["edge_mm"],
-                   b["max_deviation_mm"]) for b in snakemake.params.bands)  # noqa: F821
+bands = bands_from_config(snakemake.params.bands)  # noqa: F821
 remesh_files(snakemake.input.mesh, snakemake.input.pinna, snakemake.output.mesh, snakemake.output.report,  # noqa: F821
              bands)

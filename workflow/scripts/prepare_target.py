@@ -1,0 +1,15 @@
+"""Rule prepare_target: check a subject's left pinna scan (units, side, NaNs), cut the pinna with a ring of
+skin out of the crop, and report outliers and holes."""
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(snakemake.scriptdir)))  # noqa: F821
+from _logging import configure_logging  # noqa: E402
+
+configure_logging(snakemake)  # noqa: F821
+
+from ppm.align.target import prepare_target, write_target  # noqa: E402
+
+target = prepare_target(snakemake.input.scan, side="left",  # noqa: F821
+                        margin_mm=snakemake.params.settings["target_margin_mm"])  # noqa: F821
+write_target(target, snakemake.output.target, snakemake.output.report)  # noqa: F821

@@ -76,12 +76,13 @@ def test_default_run_plans_the_demo_through_every_stage(tmp_path):
         assert f"rule {rule}:" in text
 
 
-def _hrtf_config(work: Path, data_root: Path, solver: str, steps_per_job: int = 1) -> Path:
+def _hrtf_config(work: Path, data_root: Path, solver: str, steps_per_job: int = 1,
+                 frequencies_hz: dict | None = None) -> Path:
     import yaml
 
     config = yaml.safe_load((work / "config" / "config.yaml").read_text())
     config["data_root"] = str(data_root)
-    config["hrtf"].update(solver=solver, frequencies_hz={"min": 250.0, "max": 500.0, "step": 250.0},
+    config["hrtf"].update(solver=solver, frequencies_hz=frequencies_hz or {"min": 250.0, "max": 500.0, "step": 250.0},
                           polar_step_deg=10.0, steps_per_job=steps_per_job)
     path = work / "config" / "test_hrtf.yaml"
     path.write_text(yaml.safe_dump(config))
@@ -116,14 +117,16 @@ def test_hrtf_rules_export_solve_and_collect_a_sphere_head(tmp_path):
     import signal
     import time
 
-    config = str(_hrtf_config(work, tmp_path / "data", "embedded"))
+    # 20 frequencies: after the first the others take a fraction of a second each on this small sphere
+    config = str(_hrtf_config(work, tmp_path / "data", "embedded",
+                              frequencies_hz={"min": 100.0, "max": 2000.0, "step": 100.0}))
     first_step = work / "results/S1/hrtf/reference/project/NumCalc/source_1/be.out/be.1/pEvalGrid"
     status = work / "results/S1/hrtf/reference/steps/embedded.json"
     killed = subprocess.Popen(SNAKEMAKE + [target, "--cores", "2", "--configfile", config], cwd=work,
                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
     deadline = time.time() + 600
     while not first_step.is_file() and time.time() < deadline and killed.poll() is None:
-        time.sleep(0.5)
+        time.sleep(0.05)
     os.killpg(killed.pid, signal.SIGKILL)
     killed.wait()
     assert first_step.is_file() and not status.exists()  # no declared output of the killed job
@@ -135,12 +138,12 @@ def test_hrtf_rules_export_solve_and_collect_a_sphere_head(tmp_path):
     import json
 
     # step 1 of the left ear (and of the right one if it was written before the kill) was not redone
-    assert json.loads(status.read_text())["steps_solved"] in (2, 3)
+    assert 0 < json.loads(status.read_text())["steps_solved"] <= 38
     assert first_step.stat().st_mtime_ns == first_step_written
     hrir = sofar.read_sofa(str(work / target), verify=True)
-    assert hrir.GLOBAL_SOFAConventions == "SimpleFreeFieldHRIR" and hrir.Data_IR.shape[1:] == (2, 4)
+    assert hrir.GLOBAL_SOFAConventions == "SimpleFreeFieldHRIR" and hrir.Data_IR.shape[1:] == (2, 40)
     hrtf = sofar.read_sofa(str(work / "results/S1/hrtf/reference/HRTF_SagittalPlanes.sofa"), verify=True)
-    assert hrtf.Data_Real.shape == (108, 2, 2)  # 3 planes x 36 polar angles, 2 ears, 2 frequencies
+    assert hrtf.Data_Real.shape == (108, 2, 20)  # 3 planes x 36 polar angles, 2 ears, 20 frequencies
     assert (work / "logs/hrtf/solve_embedded/S1_reference.log").is_file()
     again = _run([target, "-n", "--cores", "2", "--configfile", str(work / "config" / "test_hrtf.yaml")], work)
     assert "Nothing to be done" in again.stdout + again.stderr

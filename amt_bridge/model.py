@@ -90,8 +90,8 @@ def spectral_profiles(plane: SagittalPlane, settings: ModelSettings) -> np.ndarr
     ``positive_gradients`` is off."""
     if plane.sampling_rate_hz / 2 <= settings.highest_frequency_hz:
         raise AmtBridgeError(f"sampling rate {plane.sampling_rate_hz:g} Hz is too low for bands up to "
-                             f"{settings.highest_frequency_hz:g} Hz; use at least "
-                             f"{2 * settings.highest_frequency_hz:g} Hz or lower highest_frequency_hz")
+                             f"{settings.highest_frequency_hz:g} Hz (its Nyquist frequency must lie above the highest band); use "
+                             f"more than {2 * settings.highest_frequency_hz:g} Hz or lower highest_frequency_hz")
     centres = centre_frequencies(settings.lowest_frequency_hz, settings.highest_frequency_hz, settings.band_spacing_erb)
     n, directions, ears = plane.irs.shape
     levels = band_levels_db(plane.irs.reshape(n, directions * ears), plane.sampling_rate_hz, centres,

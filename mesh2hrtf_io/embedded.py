@@ -12,6 +12,8 @@ import time
 
 import numpy as np
 
+from ppm.progress import Progress
+
 from .bem import estimate_cost, solve_sources
 from .project_reader import Project, read_project
 from .results import missing_steps, write_eval_grid_pressure
@@ -44,6 +46,7 @@ def solve_project_embedded(folder: str | os.PathLike, steps: list[int] | None = 
              "solve (%.1f min)", len(project.vertices_m), len(project.faces), len(points), cost.seconds_per_frequency,
              cost.memory_gb_per_frequency, total, len(steps_todo), len(steps_todo) * cost.seconds_per_frequency / 60)
     measured, done = [], 0
+    progress = Progress(total, "embedded solver, source steps", log)
     for step in steps_todo:
         # every source missing this step is solved with the same factorised system matrix
         sources = [source for source in project.sources if step in todo[source.folder]]
@@ -58,9 +61,8 @@ def solve_project_embedded(folder: str | os.PathLike, steps: list[int] | None = 
         elapsed = time.perf_counter() - start
         measured += [elapsed / len(sources)] * len(sources)
         done += len(sources)
-        remaining = (total - done) * float(np.mean(measured))
-        log.info("step %d (%.0f Hz), %s: %.1f s; %d/%d source steps done, about %.1f min left", step, frequency,
-                 " + ".join(source.folder.name for source in sources), elapsed, done, total, remaining / 60)
+        progress.step(f"step {step}, {frequency:.0f} Hz, {' + '.join(source.folder.name for source in sources)}: "
+                      f"{elapsed:.1f} s", units=len(sources))
     return {"steps_solved": done, "estimated_seconds_per_step": cost.seconds_per_frequency,
             "estimated_memory_gb": cost.memory_gb_per_frequency,
             "measured_seconds_per_step": float(np.mean(measured)) if measured else None}

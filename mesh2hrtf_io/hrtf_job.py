@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from ppm.atomic import write_text_atomic
+from ppm.progress import Progress
 
 from .cli import frequency_list
 from .errors import Mesh2HrtfIoError
@@ -55,9 +56,10 @@ def solve_numcalc_steps(project: str | os.PathLike, source: int, steps, status_p
     points = len(read_project(project).evaluation_points_m)
     binary = find_numcalc(numcalc)
     statuses = []
+    progress = Progress(len(steps), f"NumCalc source_{source}", log)
     for step in steps:
         statuses.append(run_step(binary, folder, step, points, max_iterations))
-        log.info("source_%d step %d done (%d of %d in this job)", source, step, len(statuses), len(steps))
+        progress.step(f"step {step}")
     write_text_atomic(status_path, json.dumps({"steps": statuses}, indent=2) + "\n")
 
 

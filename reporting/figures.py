@@ -65,3 +65,48 @@ def distance_histogram(distances_mm: dict[str, np.ndarray], path: str | os.PathL
     ax.set_title(title, fontsize=10)
     fig.tight_layout()
     return _save(fig, path)
+
+
+def localisation_bars(rows: list[dict], path: str | os.PathLike, title: str = "") -> Path:
+    """Quadrant error rate (%) and local polar RMS error (deg) per subject, reference HRTFs next to PPM
+    HRTFs (the paper's Figure 7 for a dataset). ``rows`` hold subject, qe/pe_reference, qe/pe_ppm."""
+    rows = [r for r in rows if r.get("qe_ppm_percent") is not None]
+    x = np.arange(len(rows))
+    fig, axes = plt.subplots(1, 2, figsize=(3.0 + 0.9 * len(rows), 3.4))
+    for ax, (metric, label) in zip(axes, (("qe", "quadrant errors (%)"), ("pe", "local polar RMS error (deg)"))):
+        unit = "percent" if metric == "qe" else "deg"
+        ax.bar(x - 0.2, [r[f"{metric}_reference_{unit}"] for r in rows], 0.4, label="reference")
+        ax.bar(x + 0.2, [r[f"{metric}_ppm_{unit}"] for r in rows], 0.4, label="PPM")
+        ax.set_xticks(x, [r["subject"] for r in rows], rotation=30 if len(rows) > 4 else 0, fontsize=8)
+        ax.set_ylabel(label)
+        ax.grid(axis="y", alpha=0.3)
+    axes[0].legend(fontsize=8)
+    fig.suptitle(title or "predicted localisation: reference vs PPM HRTFs", fontsize=10)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def parameter_recovery_figure(truth: PinnaParameters, fitted: PinnaParameters, path: str | os.PathLike,
+                              title: str = "") -> Path:
+    """Fitted against true deviation from default, one panel per parameter group (locations mm, rotations
+    deg, scales, shape keys), with the identity line: points on it are recovered exactly."""
+    specs = parameter_specs()
+    default = np.array([s.default for s in specs])
+    true_dev, fitted_dev = truth.to_vector() - default, fitted.to_vector() - default
+    fig, axes = plt.subplots(1, 4, figsize=(14, 3.6))
+    for ax, (kind, label) in zip(axes, GROUPS):
+        chosen = [i for i, s in enumerate(specs) if s.kind == kind]
+        x, y = true_dev[chosen], fitted_dev[chosen]
+        limit = max(float(np.abs(np.concatenate([x, y])).max()), 1e-6) * 1.1
+        ax.plot([-limit, limit], [-limit, limit], color="grey", lw=0.8)
+        ax.scatter(x, y, s=12, alpha=0.8)
+        ax.set_xlim(-limit, limit)
+        ax.set_ylim(-limit, limit)
+        ax.set_aspect("equal")
+        ax.set_xlabel("true", fontsize=8)
+        ax.set_ylabel("fitted", fontsize=8)
+        ax.set_title(f"{label}: {len(chosen)}", fontsize=9)
+        ax.grid(alpha=0.3)
+    fig.suptitle(title or "parameter recovery: fitted vs true deviation from the default", fontsize=10)
+    fig.tight_layout()
+    return _save(fig, path)

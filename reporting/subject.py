@@ -13,9 +13,10 @@ import numpy as np
 import trimesh
 
 from ppm.atomic import write_text_atomic
-from ppm.parameters import PinnaParameters
+from ppm.parameters import PinnaParameters, parameter_specs
 
-from .figures import distance_histogram, parameter_deviation_figure
+from .cost import solve_costs, subject_timings
+from .figures import GROUPS, distance_histogram, parameter_deviation_figure, parameter_recovery_figure
 
 
 def _image(path: Path) -> str:
@@ -47,9 +48,53 @@ STYLE = ("body{font-family:sans-serif;max-width:1100px;margin:2em auto;color:#22
          ".missing{color:#a00} .note{background:#fff3cd;padding:.5em}")
 
 
+def parameter_recovery(fitted: PinnaParameters, truth: PinnaParameters) -> list[dict]:
+    """Absolute error of the fitted parameters per group (locations mm, rotations deg, scales, shape-key
+    weights): median and maximum over the group, and the parameter with the maximum."""
+    specs = parameter_specs()
+    error = np.abs(fitted.to_vector() - truth.to_vector())
+    rows = []
+    for kind, label in GROUPS:
+        chosen = [i for i, spec in enumerate(specs) if spec.kind == kind]
+        worst = max(chosen, key=lambda i: error[i])
+        rows.append({"group": label, "n": len(chosen), "median": float(np.median(error[chosen])),
+                     "max": float(error[worst]), "worst": specs[worst].name})
+    return rows
+
+
+def _recovery_section(fitted: PinnaParameters, truth: PinnaParameters, figures: Path, subject: str) -> list[str]:
+    parameter_recovery_figure(truth, fitted, figures / "parameter_recovery.png",
+                              f"{subject}: fitted vs true parameters (deviation from the default)")
+    rows = [(r["group"], f"median {r['median']:.3f}, max {r['max']:.3f} ({r['worst']})")
+            for r in parameter_recovery(fitted, truth)]
+    return ["<h2>Recovery of the true parameters (demo subject)</h2>",
+            "<p>Absolute error of the fitted parameters against the parameters the demo ear was made with.</p>",
+            _table(rows), _image(figures / "parameter_recovery.png")]
+
+
+def _cost_section(results: Path, timings_root: Path, subject: str) -> list[str]:
+    timings = subject_timings(timings_root, subject)
+    if not timings:
+        return ["<h2>Cost of each stage</h2>", "<p class='missing'>no benchmark files found</p>"]
+    rows = [(f"{t.rule} ({t.job})", f"{t.seconds:.1f} s" + (f", peak {t.max_rss_mb:.0f} MB" if t.max_rss_mb else ""))
+            for t in timings]
+    rows.append(("all stages", f"{sum(t.seconds for t in timings):.1f} s"))
+    solve_rows = [(f"HRTF solve, {c['variant']} head",
+                   f"{c['solver']}, {c['elements']} elements, {c['frequencies']} frequencies, {c['solve_seconds']} s"
+                   + (f" ({c['seconds_per_frequency']} s per frequency, both ears)" if c["seconds_per_frequency"] else ""))
+                  for c in solve_costs(results, timings)]
+    return ["<h2>Cost of each stage</h2>", "<p>Wall-clock time and peak memory of each job (Snakemake benchmark "
+            f"files in {html.escape(str(timings_root))}).</p>", _table(solve_rows + rows)]
+
+
 def write_subject_report(subject: str, results: str | os.PathLike, out_html: str | os.PathLike,
-                         figures_dir: str | os.PathLike, note: str = "") -> Path:
-    """Build the figures into ``figures_dir`` and the HTML page ``out_html`` for one subject."""
+                         figures_dir: str | os.PathLike, note: str = "", truth: str | os.PathLike | None = None,
+                         timings_root: str | os.PathLike | None = None) -> Path:
+    """Build the figures into ``figures_dir`` and the HTML page ``out_html`` for one subject.
+
+    ``note`` is shown first (the demo's fidelity warning); ``truth`` (parameters the subject's ear was made
+    with, demo only) adds a parameter-recovery section; ``timings_root`` (Snakemake benchmark files) a cost
+    section."""
     results, figures = Path(results), Path(figures_dir)
     figures.mkdir(parents=True, exist_ok=True)
     sections = [f"<h1>Subject {html.escape(subject)}</h1>"]
@@ -71,6 +116,8 @@ def write_subject_report(subject: str, results: str | os.PathLike, out_html: str
                      _image(results / "align" / "distance_map.png")]
     else:
         sections.append("<p class='missing'>not run</p>")
+    if align and truth is not None:
+        sections += _recovery_section(parameters, PinnaParameters.read(truth, out_of_range="clip"), figures, subject)
     remesh = _json(results / "remesh" / "validation.json")
     sections.append("<h2>Head with the PPM pinna: seam and BEM mesh</h2>")
     if remesh:
@@ -98,6 +145,8 @@ def write_subject_report(subject: str, results: str | os.PathLike, out_html: str
                      ("qe_pe_bars.png", "reference_matrix.png", "ppm_matrix.png")]
     else:
         sections.append("<p class='missing'>not run (HRTFs off: set hrtf.enabled in the config)</p>")
+    if timings_root is not None:
+        sections += _cost_section(results, Path(timings_root), subject)
     page = (f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{html.escape(subject)}</title>"
             f"<style>{STYLE}</style></head><body>{''.join(sections)}</body></html>\n")
     return write_text_atomic(out_html, page)

@@ -156,6 +156,17 @@ def subject_report_inputs(wildcards):
     inputs = {"align": f"{base}/align/summary.json", "remesh": f"{base}/remesh/validation.json"}
     if config["hrtf"]["enabled"]:
         inputs["localisation"] = f"{base}/localisation/qe_pe.json"
+    if DEMO:  # the demo's fidelity note and the parameters its ear was made with
+        inputs["demo"] = str(DATA_ROOT / wildcards.subject / "demo.json")
+        inputs["truth"] = str(DATA_ROOT / wildcards.subject / "truth_parameters.json")
+    return inputs
+
+
+def dataset_report_inputs(wildcards):
+    """Every subject report (and, in the demo, one subject's fidelity note)."""
+    inputs = {"subjects": expand("results/{subject}/report.html", subject=SUBJECTS)}
+    if DEMO:
+        inputs["demo"] = str(DATA_ROOT / SUBJECTS[0] / "demo.json")
     return inputs
 
 

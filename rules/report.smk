@@ -21,10 +21,11 @@ rule report_subject:
 
 rule report_dataset:
     input:
-        subjects=expand("results/{subject}/report.html", subject=SUBJECTS),
+        unpack(dataset_report_inputs),
     output:
         html="results/dataset_report.html",
         csv="results/dataset_summary.csv",
+        parameters="results/dataset_parameters.csv",
         figures=directory("results/dataset_figures"),
     log:
         "logs/report/report_dataset.log",

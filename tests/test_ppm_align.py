@@ -8,7 +8,7 @@ import trimesh
 
 from ppm.align import AlignSettings, align, prepare_target
 from ppm.align.pose import euler_zyx_deg, parent_pose_from_rigid, rotation_zyx
-from ppm.align.report import OUTPUT_NAMES, one_sided_distances_mm, write_alignment
+from ppm.align.report import OUTPUT_NAMES, one_sided_distances_mm, write_alignment, write_distances_ply
 from ppm.align.surface import OneRingSurface
 from ppm.align.synthetic import synthetic_scan
 from ppm.errors import PpmError
@@ -59,6 +59,18 @@ def test_synthetic_scans_are_fitted_and_parameters_recovered(model):
         parent_rotation = [e for s, e in zip(specs, error) if s.target == "Size-Bendy" and s.kind == "rotation"]
         assert max(parent_location) < 0.3 and max(parent_rotation) < 1.0  # mm, deg
         assert result.seconds < 60
+
+
+def test_distances_of_a_scan_without_its_outliers_are_written_as_points(model, tmp_path):
+    """Outliers removed: the points are no longer the mesh's vertices, so the PLY holds points only."""
+    target, _ = synthetic_scan(model, np.random.default_rng(3))
+    assert len(target.points_mm) < len(target.mesh.vertices)
+    distance = np.linspace(0.0, 2.0, len(target.points_mm))
+    write_distances_ply(tmp_path / "d.ply", target, distance)
+    cloud = trimesh.load(tmp_path / "d.ply", process=False)
+    np.testing.assert_allclose(cloud.vertices, target.points_mm, atol=1e-4)
+    quality = cloud.metadata["_ply_raw"]["vertex"]["data"]["quality"]
+    np.testing.assert_allclose(quality, distance, atol=1e-6)
 
 
 @pytest.mark.slow

@@ -179,3 +179,19 @@ def test_from_blend_refuses_missing_and_foreign_files(tmp_path):
 
     with pytest.raises(PpmError, match="no such .blend file"):
         PinnaModel.from_blend(tmp_path / "missing.blend")
+
+
+def test_progress_lines_estimate_the_time_left():
+    import logging
+
+    from ppm.progress import Progress
+
+    now = [100.0]
+    progress = Progress(4, "template registrations", logging.getLogger("test"), clock=lambda: now[0])
+    assert progress.seconds_left() is None
+    now[0] += 60.0
+    line = progress.step("P039")
+    assert line == "template registrations: 1/4 done (P039), 1.0 min elapsed, about 3.0 min left"
+    now[0] += 120.0
+    progress.step()
+    assert progress.seconds_left() == 180.0  # 90 s per unit so far, 2 left

@@ -13,8 +13,10 @@ from amt_bridge.evaluation import compare_conditions, comparison_summary
 from amt_bridge.plots import save_error_bars, save_prediction_matrices
 from ppm.align import align, prepare_target
 from ppm.align.report import write_alignment
-from ppm.parameters import PinnaParameters
+from ppm.parameters import PinnaParameters, parameter_specs
 from reporting import write_dataset_report, write_subject_report
+from reporting.cost import read_benchmark, subject_timings
+from reporting.subject import parameter_recovery
 from reporting.subject import read_distances
 from stitching.pipeline import remesh_files, stitch_files
 
@@ -65,3 +67,58 @@ def test_dataset_report_and_summary_csv(results, tmp_path):
     assert 0 < float(rows[0]["align_median_mm"]) < 1.0
     assert float(rows[0]["qe_reference_percent"]) == pytest.approx(8.0, abs=0.01)
     assert "P143/report.html" in (tmp_path / "dataset.html").read_text()
+
+
+def test_parameter_recovery_groups_the_errors():
+    specs = parameter_specs()
+    location = next(s for s in specs if s.kind == "location")
+    rotation = next(s for s in specs if s.kind == "rotation")
+    truth = PinnaParameters.default()
+    fitted = truth.with_values({location.name: location.default + 0.5, rotation.name: rotation.default - 2.0})
+    rows = {r["group"].split()[0]: r for r in parameter_recovery(fitted, truth)}
+    assert rows["location"]["max"] == pytest.approx(0.5) and rows["location"]["worst"] == location.name
+    assert rows["location"]["median"] == 0.0
+    assert rows["rotation"]["max"] == pytest.approx(2.0) and rows["shape"]["max"] == 0.0
+
+
+def _benchmark(path, seconds: float, rss_mb: float) -> None:
+    """A benchmark file as Snakemake writes it."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text("s\th:m:s\tmax_rss\tmax_vms\tmax_uss\tmax_pss\tio_in\tio_out\tmean_load\tcpu_time\n"
+                    f"{seconds}\t0:00:{int(seconds):02d}\t{rss_mb}\t1\t1\t1\t0\t0\t90.0\t{seconds}\n")
+
+
+def test_stage_timings_of_one_subject_only(tmp_path):
+    _benchmark(tmp_path / "align" / "align_ppm" / "S1.tsv", 4.5, 600.0)
+    _benchmark(tmp_path / "align" / "align_ppm" / "S10.tsv", 9.0, 600.0)
+    _benchmark(tmp_path / "hrtf" / "solve_embedded" / "S1_ppm.tsv", 30.0, 900.0)
+    timings = subject_timings(tmp_path, "S1")
+    assert [(t.rule, t.job, t.seconds) for t in timings] == [("align_ppm", "S1", 4.5), ("solve_embedded", "S1_ppm", 30.0)]
+    (tmp_path / "empty.tsv").write_text("")
+    with pytest.raises(ValueError, match="empty.tsv"):
+        read_benchmark(tmp_path / "empty.tsv")
+
+
+def test_demo_report_shows_the_note_the_recovery_and_the_cost(results, tmp_path):
+    truth = tmp_path / "truth.json"
+    fitted = PinnaParameters.read(results / "P143" / "align" / "parameters.json", out_of_range="clip")
+    fitted.with_values({"Location_Size-Bendy_X": fitted.to_dict()["Location_Size-Bendy_X"] + 0.25},
+                       out_of_range="clip").write(truth)
+    _benchmark(tmp_path / "timings" / "align" / "align_ppm" / "P143.tsv", 4.5, 600.0)
+    page = write_subject_report("P143", results / "P143", tmp_path / "report.html", tmp_path / "figures",
+                                note="Demo fidelity: a test", truth=truth, timings_root=tmp_path / "timings").read_text()
+    assert "Demo fidelity: a test" in page and "Recovery of the true parameters" in page
+    assert "max 0.250 (Location_Size-Bendy_X)" in page
+    assert "align_ppm (P143)" in page and "4.5 s, peak 600 MB" in page
+    assert (tmp_path / "figures" / "parameter_recovery.png").is_file()
+
+
+def test_dataset_report_lists_parameter_ranges_and_localisation(results, tmp_path):
+    write_subject_report("P143", results / "P143", results / "P143" / "report.html", results / "P143" / "figures")
+    write_dataset_report(results, ["P143"], tmp_path / "dataset.html", tmp_path / "summary.csv", tmp_path / "figs",
+                         out_parameters_csv=tmp_path / "parameters.csv", note="Demo fidelity: a test")
+    ranges = list(csv.DictReader((tmp_path / "parameters.csv").open()))
+    assert len(ranges) == 144 and all(r["min"] == r["median"] == r["max"] for r in ranges)  # one subject
+    page = (tmp_path / "dataset.html").read_text()
+    assert "Demo fidelity: a test" in page and "Predicted localisation" in page
+    assert (tmp_path / "figs" / "localisation_bars.png").read_bytes()[:4] == b"\x89PNG"

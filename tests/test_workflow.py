@@ -4,6 +4,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 import trimesh
 
@@ -44,25 +45,79 @@ def test_config_errors_stop_before_any_work(tmp_path):
     assert not (work / "results").exists()
 
 
-PPM_TARGETS = ["results/ppm/default_ppm.png", "results/ppm/range_sheet.png", "results/ppm/default_ppm.blend",
-               "results/ppm/default_parameters.csv"]
+def _demo_config(work: Path) -> Path:
+    """The default demo, CI-sized: one subject (its 8 frequencies are the fewest that give the 16-sample
+    HRIRs baumgartner2014 needs at a rate above 36 kHz)."""
+    import yaml
+
+    config = yaml.safe_load((work / "config" / "config.yaml").read_text())
+    config["demo"]["subjects"] = 1
+    path = work / "config" / "test_demo.yaml"
+    path.write_text(yaml.safe_dump(config))
+    return path
 
 
-def test_default_run_makes_the_ppm_pictures_blend_and_parameters(tmp_path):
+def test_default_run_makes_the_demo_through_every_stage(tmp_path):
+    """`snakemake --cores 2` with no data: every output of every stage exists and parses."""
+    import csv
+    import json
+
+    import sofar
+
+    from ppm.parameters import PinnaParameters
+    from reporting.subject import read_distances
+
     work = _copy_workflow(tmp_path)
-    done = _run(PPM_TARGETS + ["--cores", "2"], work)
-    assert done.returncode == 0, done.stderr[-3000:]
-    out = work / "results" / "ppm"
+    config = str(_demo_config(work))
+    done = _run(["--cores", "2", "--configfile", config], work, timeout=1500)
+    assert done.returncode == 0, (done.stdout + done.stderr)[-4000:]
+    results = work / "results"
+    # the PPM itself
     for name in ("default_ppm.png", "range_sheet.png"):
-        assert (out / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    assert (out / "default_ppm.blend").stat().st_size > 100_000
-    lines = (out / "default_parameters.csv").read_text().splitlines()
+        assert (results / "ppm" / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert (results / "ppm" / "default_ppm.blend").stat().st_size > 100_000
+    lines = (results / "ppm" / "default_parameters.csv").read_text().splitlines()
     assert lines[0].startswith("name,value") and len(lines) == 145
-    assert (work / "logs" / "ppm" / "render_ppm.log").is_file()
-    # nothing half-written is left behind
-    assert not list(out.glob(".*partial*"))
-    # a second run has nothing to do
-    again = _run(PPM_TARGETS + ["--cores", "2", "-n"], work)
+    # the demo subject
+    subject, base = "demo01", results / "demo01"
+    truth = PinnaParameters.read(results / "demo_data" / subject / "truth_parameters.json")
+    assert json.loads((results / "demo_data" / subject / "demo.json").read_text())["fidelity"] == "demo"
+    assert json.loads((base / "target" / "target.json").read_text())["n_points"] > 5000
+    # alignment: close to the noisy scan and to the true parameters
+    summary = json.loads((base / "align" / "summary.json").read_text())
+    assert summary["distance_target_to_ppm"]["median_mm"] < 0.3  # mm; 0.2 mm scan noise
+    fitted = PinnaParameters.read(base / "align" / "parameters.csv")
+    assert fitted == PinnaParameters.read(base / "align" / "parameters.json")
+    assert abs(fitted.to_dict()["Location_Size-Bendy_X"] - truth.to_dict()["Location_Size-Bendy_X"]) < 0.5  # mm
+    assert len(read_distances(base / "align" / "distances.ply")) == summary["distance_target_to_ppm"]["n_points"]
+    assert trimesh.load(base / "align" / "aligned_pinna.ply", process=False).vertices.shape[0] > 5000
+    # stitched and remeshed heads: closed and manifold
+    for mesh in (base / "stitch" / "stitched_head.ply", base / "remesh" / "head.ply"):
+        assert trimesh.load(mesh, process=False).is_watertight, mesh
+    assert json.loads((base / "remesh" / "validation.json").read_text())["ok"] is True
+    # HRTFs of both heads, SOFA files that pass sofar's checks
+    for variant in ("reference", "ppm"):
+        hrir = sofar.read_sofa(str(base / "hrtf" / variant / "HRIR_SagittalPlanes.sofa"), verify=True)
+        assert hrir.Data_IR.shape[1:] == (2, 16) and hrir.Data_SamplingRate == 40000.0
+        assert np.isfinite(hrir.Data_IR).all()
+        hrtf = sofar.read_sofa(str(base / "hrtf" / variant / "HRTF_SagittalPlanes.sofa"), verify=True)
+        assert hrtf.Data_Real.shape[2] == 8
+    # localisation: the reference calibrated to 8 % quadrant errors
+    localisation = json.loads((base / "localisation" / "qe_pe.json").read_text())
+    assert abs(localisation["conditions"]["reference"]["qe_percent"] - 8.0) < 0.1
+    assert 0 <= localisation["conditions"]["ppm"]["qe_percent"] <= 100
+    # reports: self-contained, saying they are demo fidelity
+    page = (base / "report.html").read_text()
+    assert "Demo fidelity" in page and "Recovery of the true parameters" in page and "Cost of each stage" in page
+    assert page.count("data:image/png;base64,") >= 7 and "not made" not in page
+    rows = list(csv.DictReader((results / "dataset_summary.csv").open()))
+    assert [r["subject"] for r in rows] == [subject] and float(rows[0]["solve_seconds_ppm"]) > 0
+    assert len(list(csv.DictReader((results / "dataset_parameters.csv").open()))) == 144
+    assert "Demo fidelity" in (results / "dataset_report.html").read_text()
+    # a log per job, nothing half-written, and nothing left to do
+    assert len(list((work / "logs").rglob("*.log"))) >= 12
+    assert not [p for p in results.rglob("*") if "partial" in p.name or p.name.startswith(".tmp")]
+    again = _run(["-n", "--cores", "2", "--configfile", config], work)
     assert "Nothing to be done" in again.stdout + again.stderr
 
 

@@ -58,10 +58,8 @@ def write_distances_ply(path: str | Path, target: Target, distance_mm: np.ndarra
     path = Path(path)
     mesh = target.mesh
     on_mesh = len(mesh.vertices) == len(target.points_mm) and np.array_equal(mesh.vertices, target.points_mm)
-    if on_mesh:
-        out = trimesh.Trimesh(mesh.vertices, mesh.faces, process=False)
-    else:
-        out = trimesh.PointCloud(target.points_mm)
+    faces = mesh.faces if on_mesh else np.zeros((0, 3), dtype=np.int64)  # points only: a faceless mesh
+    out = trimesh.Trimesh(target.points_mm, faces, process=False)
     out.vertex_attributes["quality"] = np.asarray(distance_mm, dtype=np.float32)
     with atomic_path(path) as tmp:
         out.export(tmp, file_type="ply")

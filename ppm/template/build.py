@@ -18,6 +18,7 @@ import trimesh
 
 from ..atomic import write_text_atomic
 from ..errors import PpmError
+from ..progress import Progress
 from ..landmarks import LANDMARKS_NAME
 from ..mesh_io import load_left_pinna
 from .register import nonrigid_register, procrustes_mean, rigid_align
@@ -86,7 +87,8 @@ def reference_topology(scan: EarScan, edge_mm: float, margin_mm: float) -> trime
     return remesh_isotropic(crop_to_region(mesh, region), edge_mm)
 
 
-def register_to_scans(topology: trimesh.Trimesh, scans: list[EarScan]) -> tuple[list[np.ndarray], list[dict]]:
+def register_to_scans(topology: trimesh.Trimesh, scans: list[EarScan],
+                      progress: Progress | None = None) -> tuple[list[np.ndarray], list[dict]]:
     """Register `topology` onto every scan.
 
     Returns the deformed vertex arrays (same order, mm) and, per scan, the residual distance
@@ -104,6 +106,8 @@ def register_to_scans(topology: trimesh.Trimesh, scans: list[EarScan]) -> tuple[
                       "p95_mm": round(float(np.percentile(residual, 95)), 3),
                       "seconds": round(time.perf_counter() - start, 1)})
         log.info("registered onto %(scan)s: median %(median_mm).2f mm, p95 %(p95_mm).2f mm, %(seconds).1f s", stats[-1])
+        if progress is not None:
+            progress.step(scan.label)
     return shapes, stats
 
 
@@ -134,10 +138,11 @@ def build_template(scans: list[EarScan], *, topology: trimesh.Trimesh | None = N
     if not scans:
         raise PpmError("no ear scans to build a template from")
     current = topology if topology is not None else reference_topology(scans[0], edge_mm, margin_mm)
+    progress = Progress(rounds * len(scans), "template registrations", log)
     for round_index in range(rounds):
         log.info("round %d/%d: registering %d vertices onto %d scans", round_index + 1, rounds,
                  len(current.vertices), len(scans))
-        shapes, residuals = register_to_scans(current, scans)
+        shapes, residuals = register_to_scans(current, scans, progress)
         current = trimesh.Trimesh(procrustes_mean(shapes), current.faces, process=False)
     if topology is None:
         # a new common topology: remesh the mean once more, so averaging leaves no slivers in creases

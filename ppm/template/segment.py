@@ -10,14 +10,23 @@ from __future__ import annotations
 
 import numpy as np
 import trimesh
-from scipy.spatial import ConvexHull
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import ConvexHull, cKDTree
 
 from ..errors import PpmError
 
 #: A flap thicker than this (mm) is not pinna cartilage.
 MAX_FLAP_THICKNESS_MM = 12.0
+#: Nor is one thinner than this (skin on both sides alone is thicker): such hits come from scan noise
+#: and outlier spikes next to the ray's start.
+MIN_FLAP_THICKNESS_MM = 1.0
 #: Rays are cast from at most this many vertices (speed); the footprint is a 2-D mask anyway.
 MAX_RAY_VERTICES = 4000
+#: Flap points closer than this (mm, side view) belong to one cluster; clusters holding less than
+#: MIN_CLUSTER_SHARE of the flap points are scan defects (spikes, noisy skin), not pinna.
+CLUSTER_LINK_MM = 5.0
+MIN_CLUSTER_SHARE = 0.05
 
 
 def flap_thickness_mm(mesh: trimesh.Trimesh, vertex_ids: np.ndarray) -> np.ndarray:
@@ -42,13 +51,26 @@ def flap_points_xz(mesh: trimesh.Trimesh, seed: int = 0) -> np.ndarray:
     n = len(mesh.vertices)
     ids = np.arange(n) if n <= MAX_RAY_VERTICES else np.sort(rng.choice(n, MAX_RAY_VERTICES, replace=False))
     thickness = flap_thickness_mm(mesh, ids)
-    flap_xz = mesh.vertices[ids][thickness < MAX_FLAP_THICKNESS_MM][:, [0, 2]]
+    flap = (thickness >= MIN_FLAP_THICKNESS_MM) & (thickness < MAX_FLAP_THICKNESS_MM)
+    flap_xz = without_stray_clusters(mesh.vertices[ids][flap][:, [0, 2]])
     if len(flap_xz) < 50:
         raise PpmError(
             f"found only {len(flap_xz)} points on a thin flap: this mesh does not look like a pinna crop "
             "(or it is far coarser than 2 mm)"
         )
     return flap_xz
+
+
+def without_stray_clusters(points_xz: np.ndarray) -> np.ndarray:
+    """The side-view flap points (mm) without the small clusters that outlier spikes and noisy head skin
+    leave far from the pinna (a real pinna's flap points form one cluster at CLUSTER_LINK_MM)."""
+    if len(points_xz) == 0:
+        return points_xz
+    pairs = cKDTree(points_xz).query_pairs(CLUSTER_LINK_MM, output_type="ndarray")
+    links = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(len(points_xz),) * 2)
+    _, label = connected_components(links, directed=False)
+    size = np.bincount(label)
+    return points_xz[size[label] >= MIN_CLUSTER_SHARE * len(points_xz)]
 
 
 def distance_to_hull_mm(hull_xz: np.ndarray, points_xz: np.ndarray) -> np.ndarray:

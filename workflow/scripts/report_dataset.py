@@ -1,4 +1,6 @@
-"""Rule report_dataset: all subjects side by side, the summary CSV and population figures."""
+"""Rule report_dataset: all subjects side by side, the summary CSV, parameter ranges and population
+figures."""
+import json
 import sys
 from pathlib import Path
 
@@ -9,5 +11,8 @@ configure_logging(snakemake)  # noqa: F821
 
 from reporting import write_dataset_report  # noqa: E402
 
-write_dataset_report(Path("results"), list(snakemake.params.subjects), snakemake.output.html,  # noqa: F821
-                     snakemake.output.csv, snakemake.output.figures)  # noqa: F821
+inputs, output = snakemake.input, snakemake.output  # noqa: F821
+note = json.loads(Path(inputs.demo).read_text())["note"] if "demo" in inputs.keys() else ""
+write_dataset_report(Path("results"), list(snakemake.params.subjects), output.html, output.csv,  # noqa: F821
+                     output.figures, out_parameters_csv=output.parameters, note=note,
+                     timings_root="benchmarks/timings")

@@ -45,7 +45,7 @@ def solve_project_embedded(folder: str | os.PathLike, steps: list[int] | None = 
              "frequency (all sources of a frequency share one factorised matrix); %d source step(s) at %d frequencies to "
              "solve (%.1f min)", len(project.vertices_m), len(project.faces), len(points), cost.seconds_per_frequency,
              cost.memory_gb_per_frequency, total, len(steps_todo), len(steps_todo) * cost.seconds_per_frequency / 60)
-    measured, done = [], 0
+    measured = []
     progress = Progress(total, "embedded solver, source steps", log)
     for step in steps_todo:
         # every source missing this step is solved with the same factorised system matrix
@@ -60,9 +60,8 @@ def solve_project_embedded(folder: str | os.PathLike, steps: list[int] | None = 
                                      f"Mesh2HRTF {project.parameters.get('Mesh2HRTF_Version', '1.2.4')}")
         elapsed = time.perf_counter() - start
         measured += [elapsed / len(sources)] * len(sources)
-        done += len(sources)
         progress.step(f"step {step}, {frequency:.0f} Hz, {' + '.join(source.folder.name for source in sources)}: "
                       f"{elapsed:.1f} s", units=len(sources))
-    return {"steps_solved": done, "estimated_seconds_per_step": cost.seconds_per_frequency,
+    return {"steps_solved": progress.done, "estimated_seconds_per_step": cost.seconds_per_frequency,
             "estimated_memory_gb": cost.memory_gb_per_frequency,
             "measured_seconds_per_step": float(np.mean(measured)) if measured else None}

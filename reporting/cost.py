@@ -45,16 +45,27 @@ STAGE_ORDER = ("make_demo_subject", "build_template", "prepare_target", "align_p
                "report_subject")
 
 
+def _of_job(stem: str, name: str) -> bool:
+    """Whether a benchmark file stem belongs to job ``name`` (a subject, or subject_variant)."""
+    return stem == name or stem.startswith(f"{name}_")
+
+
+def subjects_timings(timings_root: str | os.PathLike, subjects: list[str]) -> dict[str, list[StageTiming]]:
+    """Every benchmark of each subject's jobs under ``timings_root`` (the tree is listed once), in
+    pipeline order."""
+    paths = sorted(Path(timings_root).rglob("*.tsv"))
+    rank = {rule: i for i, rule in enumerate(STAGE_ORDER)}
+    found = {}
+    for subject in subjects:
+        timings = [StageTiming(path.parent.name, path.stem, *read_benchmark(path))
+                   for path in paths if _of_job(path.stem, subject)]
+        found[subject] = sorted(timings, key=lambda t: (rank.get(t.rule, len(rank)), t.rule, t.job))
+    return found
+
+
 def subject_timings(timings_root: str | os.PathLike, subject: str) -> list[StageTiming]:
     """Every benchmark of ``subject``'s jobs under ``timings_root``, in pipeline order."""
-    timings = []
-    for path in sorted(Path(timings_root).rglob("*.tsv")):
-        if path.stem != subject and not path.stem.startswith(f"{subject}_"):
-            continue
-        seconds, rss = read_benchmark(path)
-        timings.append(StageTiming(path.parent.name, path.stem, seconds, rss))
-    rank = {rule: i for i, rule in enumerate(STAGE_ORDER)}
-    return sorted(timings, key=lambda t: (rank.get(t.rule, len(rank)), t.rule, t.job))
+    return subjects_timings(timings_root, [subject])[subject]
 
 
 def project_elements(project: str | os.PathLike) -> int | None:
@@ -67,8 +78,9 @@ def project_elements(project: str | os.PathLike) -> int | None:
 
 
 def solve_costs(results: str | os.PathLike, timings: list[StageTiming]) -> list[dict]:
-    """Per head variant with an exported project: solver, elements, frequencies, solve seconds (all its
-    solver jobs), seconds per frequency and peak memory."""
+    """Per head variant with an exported project under ``results`` (a subject's folder, named after it):
+    solver, elements, frequencies, solve seconds (all its solver jobs), seconds per frequency, peak memory."""
+    subject = Path(results).name
     rows = []
     for variant in ("reference", "ppm"):
         project = Path(results) / "hrtf" / variant / "project"
@@ -76,7 +88,7 @@ def solve_costs(results: str | os.PathLike, timings: list[StageTiming]) -> list[
             continue
         parameters = json.loads((project / "parameters.json").read_text()) if (project / "parameters.json").is_file() else {}
         frequencies = parameters.get("frequencies") or []
-        jobs = [t for t in timings if t.rule.startswith("solve_") and t.job.split("_")[1:2] == [variant]]
+        jobs = [t for t in timings if t.rule.startswith("solve_") and _of_job(t.job, f"{subject}_{variant}")]
         solver = "embedded" if any(t.rule == "solve_embedded" for t in jobs) else ("NumCalc" if jobs else "given")
         seconds = sum(t.seconds for t in jobs)
         rss = [t.max_rss_mb for t in jobs if t.max_rss_mb is not None]

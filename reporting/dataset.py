@@ -14,7 +14,7 @@ import numpy as np
 from ppm.atomic import write_text_atomic
 from ppm.parameters import PinnaParameters, parameter_specs
 
-from .cost import solve_costs, subject_timings
+from .cost import solve_costs, subjects_timings
 from .figures import distance_histogram, localisation_bars, parameter_deviation_figure
 from .subject import STYLE, _image, read_distances
 
@@ -33,12 +33,14 @@ def dataset_summary(results: str | os.PathLike, subjects: list[str],
     """One row per subject with the figures of every stage (empty where a stage did not run); with
     ``timings_root`` (Snakemake benchmark files) also the solve and total seconds."""
     rows = []
+    all_timings = subjects_timings(timings_root, subjects) if timings_root is not None else {}
     for subject in subjects:
-        timings = subject_timings(timings_root, subject) if timings_root is not None else []
-        solve = {c["variant"]: c["solve_seconds"] for c in solve_costs(Path(results) / subject, timings)}
+        timings = all_timings.get(subject, [])
         base = Path(results) / subject
+        solve = {c["variant"]: c["solve_seconds"] for c in solve_costs(base, timings)}
         align, remesh = _load(base / "align" / "summary.json"), _load(base / "remesh" / "validation.json")
-        local = _load(base / "localisation" / "qe_pe.json").get("conditions", {})
+        localisation = _load(base / "localisation" / "qe_pe.json")
+        local = localisation.get("conditions", {})
         distance = align.get("distance_target_to_ppm", {})
         rows.append({
             "subject": subject, "align_median_mm": distance.get("median_mm"), "align_p95_mm": distance.get("p95_mm"),
@@ -47,7 +49,7 @@ def dataset_summary(results: str | os.PathLike, subjects: list[str],
             "qe_reference_percent": local.get("reference", {}).get("qe_percent"),
             "pe_reference_deg": local.get("reference", {}).get("pe_deg"),
             "qe_ppm_percent": local.get("ppm", {}).get("qe_percent"), "pe_ppm_deg": local.get("ppm", {}).get("pe_deg"),
-            "sensitivity_db": _load(base / "localisation" / "qe_pe.json").get("sensitivity_db"),
+            "sensitivity_db": localisation.get("sensitivity_db"),
             "solve_seconds_reference": solve.get("reference"), "solve_seconds_ppm": solve.get("ppm"),
             "all_stages_seconds": round(sum(t.seconds for t in timings), 1) if timings else None})
     return rows

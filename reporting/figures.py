@@ -19,6 +19,11 @@ GROUPS = (("location", "location (mm)"), ("rotation", "rotation (deg)"), ("scale
           ("shape_key", "shape key (weight)"))
 
 
+def group_indices(kind: str) -> list[int]:
+    """Indices (in parameter-vector order) of the parameters of one GROUPS kind."""
+    return [i for i, spec in enumerate(parameter_specs()) if spec.kind == kind]
+
+
 def _save(fig, path: str | os.PathLike) -> Path:
     with atomic_path(path) as tmp:
         fig.savefig(tmp, dpi=110, format=Path(path).suffix.lstrip(".") or "png")
@@ -34,7 +39,7 @@ def parameter_deviation_figure(parameters: dict[str, PinnaParameters], path: str
     fig, axes = plt.subplots(1, 4, figsize=(14, 3.6))
     names = list(parameters)
     for ax, (kind, label) in zip(axes, GROUPS):
-        chosen = [i for i, s in enumerate(specs) if s.kind == kind]
+        chosen = group_indices(kind)
         for k, name in enumerate(names):
             deviation = parameters[name].to_vector()[chosen] - np.array([specs[i].default for i in chosen])
             jitter = np.random.default_rng(k).uniform(-0.15, 0.15, len(chosen))
@@ -95,7 +100,7 @@ def parameter_recovery_figure(truth: PinnaParameters, fitted: PinnaParameters, p
     true_dev, fitted_dev = truth.to_vector() - default, fitted.to_vector() - default
     fig, axes = plt.subplots(1, 4, figsize=(14, 3.6))
     for ax, (kind, label) in zip(axes, GROUPS):
-        chosen = [i for i, s in enumerate(specs) if s.kind == kind]
+        chosen = group_indices(kind)
         x, y = true_dev[chosen], fitted_dev[chosen]
         limit = max(float(np.abs(np.concatenate([x, y])).max()), 1e-6) * 1.1
         ax.plot([-limit, limit], [-limit, limit], color="grey", lw=0.8)

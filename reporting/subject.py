@@ -16,7 +16,7 @@ from ppm.atomic import write_text_atomic
 from ppm.parameters import PinnaParameters, parameter_specs
 
 from .cost import solve_costs, subject_timings
-from .figures import GROUPS, distance_histogram, parameter_deviation_figure, parameter_recovery_figure
+from .figures import GROUPS, distance_histogram, group_indices, parameter_deviation_figure, parameter_recovery_figure
 
 
 def _image(path: Path) -> str:
@@ -55,7 +55,7 @@ def parameter_recovery(fitted: PinnaParameters, truth: PinnaParameters) -> list[
     error = np.abs(fitted.to_vector() - truth.to_vector())
     rows = []
     for kind, label in GROUPS:
-        chosen = [i for i, spec in enumerate(specs) if spec.kind == kind]
+        chosen = group_indices(kind)
         worst = max(chosen, key=lambda i: error[i])
         rows.append({"group": label, "n": len(chosen), "median": float(np.median(error[chosen])),
                      "max": float(error[worst]), "worst": specs[worst].name})

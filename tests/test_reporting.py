@@ -15,7 +15,7 @@ from ppm.align import align, prepare_target
 from ppm.align.report import write_alignment
 from ppm.parameters import PinnaParameters, parameter_specs
 from reporting import write_dataset_report, write_subject_report
-from reporting.cost import read_benchmark, subject_timings
+from reporting.cost import read_benchmark, solve_costs, subject_timings
 from reporting.subject import parameter_recovery
 from reporting.subject import read_distances
 from stitching.pipeline import remesh_files, stitch_files
@@ -122,3 +122,18 @@ def test_dataset_report_lists_parameter_ranges_and_localisation(results, tmp_pat
     page = (tmp_path / "dataset.html").read_text()
     assert "Demo fidelity: a test" in page and "Predicted localisation" in page
     assert (tmp_path / "figs" / "localisation_bars.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_solve_cost_of_a_subject_with_underscores_in_its_name(tmp_path):
+    """Solver jobs are matched by '<subject>_<variant>', not by splitting the name on underscores."""
+    results = tmp_path / "results" / "P_01"
+    for variant in ("reference", "ppm"):
+        project = results / "hrtf" / variant / "project"
+        (project / "ObjectMeshes" / "Reference").mkdir(parents=True)
+        (project / "ObjectMeshes" / "Reference" / "Elements.txt").write_text("2000\n")
+        (project / "parameters.json").write_text(json.dumps({"frequencies": [1000.0, 2000.0]}))
+    _benchmark(tmp_path / "timings" / "hrtf" / "solve_embedded" / "P_01_ppm.tsv", 30.0, 900.0)
+    _benchmark(tmp_path / "timings" / "hrtf" / "solve_embedded" / "P_01_reference.tsv", 20.0, 800.0)
+    costs = {c["variant"]: c for c in solve_costs(results, subject_timings(tmp_path / "timings", "P_01"))}
+    assert costs["ppm"]["solve_seconds"] == 30.0 and costs["ppm"]["seconds_per_frequency"] == 15.0
+    assert costs["reference"]["solve_seconds"] == 20.0 and costs["reference"]["elements"] == 2000

@@ -18,9 +18,9 @@ import trimesh
 
 from ..atomic import write_text_atomic
 from ..errors import PpmError
-from ..progress import Progress
 from ..landmarks import LANDMARKS_NAME
 from ..mesh_io import load_left_pinna
+from ..progress import Progress
 from .register import nonrigid_register, procrustes_mean, rigid_align
 from .segment import crop_to_region, pinna_region
 

@@ -16,7 +16,7 @@ import numpy as np
 import trimesh
 
 from ppm.model import PinnaModel
-from ppm.parameters import PinnaParameters, bounds, parameter_specs
+from ppm.parameters import PinnaParameters, bounds, parameter_specs, random_parameters
 
 
 def flipped_faces(model: PinnaModel, params: PinnaParameters, rest_normals: np.ndarray) -> int:
@@ -52,9 +52,12 @@ def main() -> None:
           f"p95 {np.percentile(times_ms, 95):.2f} ms over {len(times_ms)} random parameter sets")
 
     rest_normals = trimesh.Trimesh(model.template_vertices_mm, model.faces, process=False).face_normals
+    half = [flipped_faces(model, random_parameters(rng, 0.5), rest_normals) for _ in range(100)]
     uniform = [flipped_faces(model, PinnaParameters(rng.uniform(lower, upper)), rest_normals) for _ in range(100)]
     corners = [flipped_faces(model, PinnaParameters(np.where(rng.random(len(lower)) < 0.5, lower, upper)),
                              rest_normals) for _ in range(100)]
+    print(f"flipped triangles, 100 sets uniform within half of every range: max {max(half)}, "
+          f"sets with any: {sum(f > 0 for f in half)}")
     print(f"flipped triangles, 100 uniform in-bound sets: max {max(uniform)}, sets with any: {sum(f > 0 for f in uniform)}")
     print(f"flipped triangles, 100 corner sets (every parameter at a bound): max {max(corners)}, "
           f"sets with any: {sum(f > 0 for f in corners)}")
@@ -64,7 +67,9 @@ def main() -> None:
         "eval_ms": round(float(np.median(times_ms)), 3),
         "eval_p95_ms": round(float(np.percentile(times_ms, 95)), 3),
         "build_seconds": round(build_s, 2),
+        "half_range_sets_with_flips": int(sum(f > 0 for f in half)),
         "uniform_sets_with_flips": int(sum(f > 0 for f in uniform)),
+        "uniform_max_flipped_faces": int(max(uniform)),
         "corner_sets_with_flips": int(sum(f > 0 for f in corners)),
         "corner_max_flipped_faces": int(max(corners)),
     }))

@@ -13,6 +13,7 @@ empties Blender's scene.
 """
 from __future__ import annotations
 
+import functools
 import json
 import logging
 import os
@@ -152,6 +153,19 @@ class PinnaModel:
         if params is not None:
             self.set_parameters(params)
         return self.template_vertices_mm + (self._read_evaluated() - self._rest_blender)
+
+    def folded_faces(self, vertices_mm: np.ndarray) -> np.ndarray:
+        """Indices of the faces of a posed pinna (vertices in mm) whose normal turned by more than 90°
+        from the template's: folds. The parent bone (rotation <= 25°, positive scales) cannot cause one."""
+        rest = self._rest_face_normals
+        tri = np.asarray(vertices_mm, dtype=np.float64)[self.faces]
+        normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        return np.flatnonzero(np.einsum("ij,ij->i", normals, rest) < 0.0)
+
+    @functools.cached_property
+    def _rest_face_normals(self) -> np.ndarray:
+        tri = self.template_vertices_mm[self.faces]
+        return np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
 
     def mesh(self, params: PinnaParameters | None = None) -> trimesh.Trimesh:
         """The deformed pinna as a trimesh (mm, project frame, template vertex order)."""

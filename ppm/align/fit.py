@@ -9,12 +9,15 @@ Objective, minimised by damped Gauss-Newton on the parameters normalised to thei
 * model -> target: for every template vertex away from the template's outer ring, the
   point-to-plane distance to its closest target point, trimmed the same way (holes), so the model
   cannot shrink into a part of the scan;
-* a weak prior pulling each parameter towards its default, in units of its range.
+* a weak prior pulling each parameter towards its default, in units of its range;
+* a fold barrier: every triangle whose normal turned more than 60° from the template's costs the
+  square of how far past 60° it is (in cosine), so wide bone ranges cannot fold the surface over.
 
 The Jacobian of the vertices with respect to the active parameters is taken by finite differences
 of Blender's evaluation (about 2 ms per parameter). Stages follow the manual protocol: the parent
 bone (global pose and size), then all bones (convex structures), then the shape keys (concave
-structures), then everything together until the cost stops falling. Bounds are kept by clipping.
+structures), then everything together until the cost stops falling. Bounds are kept by an active
+set (a parameter at a bound that the step pushes outward is held there) and clipping.
 """
 from __future__ import annotations
 
@@ -42,10 +45,12 @@ class AlignSettings:
     """Settings of :func:`align` (lengths in mm)."""
 
     max_target_points: int = 6000       # target points used while fitting (all are used for the report)
-    trim_mm: float = 3.0                # correspondences farther apart are ignored
-    huber_mm: float = 0.5               # residuals above this are down-weighted
-    model_to_target_weight: float = 0.5
+    trim_mm: float = 5.0                # correspondences farther apart are ignored
+    huber_mm: float = 2.0               # residuals above this are down-weighted
+    model_to_target_weight: float = 0.25
     prior_weight: float = 2e-3          # per parameter, in (range units)^2 against mm^2 of residual
+    fold_cosine: float = 0.5            # a face whose normal turns more than 60° from the template's ...
+    fold_weight: float = 1.0            # ... costs fold_weight * (fold_cosine - cos(turn))^2 (barrier against folds)
     ring_exclusion_mm: float = 4.0      # template vertices this close to its outer ring are not pulled
     start_angles_deg: tuple[float, ...] = (0.0, 15.0, -15.0)
     stages: tuple[tuple[str, int], ...] = (("parent", 10), ("bones", 12), ("shape_keys", 8), ("all", 20))
@@ -63,6 +68,7 @@ class AlignmentResult:
     seconds: float
     start_index: int
     warnings: list[str]
+    folded_faces: int = 0
 
 
 def _stage_mask(stage: str) -> np.ndarray:
@@ -111,6 +117,9 @@ class _Problem:
         self.lower, self.upper = bounds()
         self.scale = np.maximum(self.upper - self.default, self.default - self.lower)
         self.step = 0.02 * self.scale  # finite-difference step per parameter
+        rest_tri = rest[model.faces]
+        rest_normals = np.cross(rest_tri[:, 1] - rest_tri[:, 0], rest_tri[:, 2] - rest_tri[:, 0])
+        self.rest_normals = rest_normals / np.maximum(np.linalg.norm(rest_normals, axis=1, keepdims=True), 1e-12)
 
     def residuals(self, vertices: np.ndarray, with_geometry: bool = False):
         """Weighted residual vectors (mm) of both terms, and what is needed for their Jacobians."""
@@ -129,11 +138,32 @@ class _Problem:
         w_a = keep_a * np.minimum(1.0, s.huber_mm / np.maximum(np.abs(r_a), 1e-12)) / max(keep_a.sum(), 1)
         w_b = keep_b * np.minimum(1.0, s.huber_mm / np.maximum(np.abs(r_b), 1e-12)) / max(keep_b.sum(), 1)
         w_b = w_b * s.model_to_target_weight
-        cost = float((w_a * r_a**2).sum() + (w_b * r_b**2).sum())
-        stats = {"median_mm": float(np.median(distance)), "kept_share": float(keep_a.mean())}
+        fold_faces, r_f, dcos_dv = self.fold_terms(vertices)
+        cost = float((w_a * r_a**2).sum() + (w_b * r_b**2).sum() + s.fold_weight * (r_f**2).sum())
+        stats = {"median_mm": float(np.median(distance)), "kept_share": float(keep_a.mean()),
+                 "folded_faces": int(len(self.model.folded_faces(vertices)))}
         if not with_geometry:
             return cost, stats
-        return cost, stats, (face_ids, bary, normal, r_a, w_a, n_b, r_b, w_b)
+        return cost, stats, (face_ids, bary, normal, r_a, w_a, n_b, r_b, w_b, fold_faces, r_f, dcos_dv)
+
+    def fold_terms(self, vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Faces turned past the fold threshold, their residuals (fold_cosine - cos(turn), so a
+        positive residual means too far turned) and the derivative of cos(turn) by their three
+        vertices, (m, 3, 3) per mm."""
+        faces = self.model.faces
+        tri = vertices[faces]
+        e1, e2 = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
+        normal = np.cross(e1, e2)
+        length = np.maximum(np.linalg.norm(normal, axis=1), 1e-12)
+        unit = normal / length[:, None]
+        cosine = np.einsum("ij,ij->i", unit, self.rest_normals)
+        turned = np.flatnonzero(cosine < self.settings.fold_cosine)
+        unit, m, c = unit[turned], self.rest_normals[turned], cosine[turned]
+        g = (m - c[:, None] * unit) / length[turned, None]     # d cos / d normal
+        d1 = np.cross(e2[turned], g)
+        d2 = np.cross(g, e1[turned])
+        dcos_dv = np.stack([-(d1 + d2), d1, d2], axis=1)
+        return turned, self.settings.fold_cosine - c, dcos_dv
 
     def prior(self, params: np.ndarray) -> float:
         u = (params - self.default) / self.scale
@@ -160,7 +190,7 @@ def _gauss_newton_stage(problem: _Problem, params: np.ndarray, active: np.ndarra
     cost += problem.prior(params)
     damping = 1e-3
     for iteration in range(iterations):
-        face_ids, bary, normal, r_a, w_a, n_b, r_b, w_b = geometry
+        face_ids, bary, normal, r_a, w_a, n_b, r_b, w_b, fold_faces, r_f, dcos_dv = geometry
         jac = problem.jacobian(params, vertices, active)
         faces = problem.model.faces[face_ids]
         rows_a = sum(bary[:, k, None] * np.einsum("ij,ijk->ik", normal, jac[faces[:, k]]) for k in range(3))
@@ -168,12 +198,24 @@ def _gauss_newton_stage(problem: _Problem, params: np.ndarray, active: np.ndarra
         u = (params - problem.default) / problem.scale
         hessian = (rows_a.T * w_a) @ rows_a + (rows_b.T * w_b) @ rows_b
         gradient = (rows_a.T * w_a) @ r_a + (rows_b.T * w_b) @ r_b
+        if len(fold_faces):  # residual fold_cosine - cos: its rows are minus the derivative of cos
+            corners = problem.model.faces[fold_faces]
+            rows_f = -sum(np.einsum("ij,ijk->ik", dcos_dv[:, k], jac[corners[:, k]]) for k in range(3))
+            hessian += s.fold_weight * rows_f.T @ rows_f
+            gradient += s.fold_weight * rows_f.T @ r_f
         hessian += s.prior_weight * np.eye(len(gradient))
         gradient += s.prior_weight * u[active]
+        # parameters held at a bound that the descent direction pushes outward stay there (active set)
+        lower, upper = problem.lower[active], problem.upper[active]
+        tolerance = 1e-9 * problem.scale[active]
+        held = ((params[active] <= lower + tolerance) & (gradient > 0)) | \
+               ((params[active] >= upper - tolerance) & (gradient < 0))
+        free = ~held
         accepted = False
         for _ in range(6):
             system = hessian + damping * np.diag(np.diag(hessian) + 1e-9)
-            delta = -np.linalg.solve(system, gradient)
+            delta = np.zeros_like(gradient)
+            delta[free] = -np.linalg.solve(system[np.ix_(free, free)], gradient[free])
             trial = params.copy()
             trial[active] = np.clip(params[active] + delta * problem.scale[active], problem.lower[active],
                                     problem.upper[active])
@@ -246,5 +288,9 @@ def align(model: PinnaModel, target: Target, settings: AlignSettings | None = No
         vector = _gauss_newton_stage(problem, vector, _stage_mask(stage), iterations, history, stage)
     final = PinnaParameters(vector)
     vertices = model.evaluate(final)
+    folded = len(model.folded_faces(vertices))
+    if folded:
+        warnings.append(f"{folded} triangles of the aligned pinna are folded over (normal turned > 90°); "
+                        "fix them by hand in the .blend before stitching")
     return AlignmentResult(final, vertices, history, time.perf_counter() - start, start_index,
-                           warnings + list(target.warnings))
+                           warnings + list(target.warnings), folded)

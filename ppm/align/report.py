@@ -82,6 +82,7 @@ def write_alignment(out_dir: str | Path, model: PinnaModel, target: Target, resu
         "seconds": round(result.seconds, 2),
         "global_pose_start": result.start_index,
         "iterations": len(result.history),
+        "folded_faces": result.folded_faces,
         "warnings": warnings,
         **(extra or {}),
     }

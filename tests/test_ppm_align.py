@@ -51,8 +51,15 @@ def test_synthetic_scans_are_fitted_and_parameters_recovered(model):
         result = align(model, target)
         distance = one_sided_distances_mm(target, result.vertices_mm, model.faces)
         assert np.median(distance) < 0.3  # mm; the noise alone gives about 0.14
-        vertex_error = np.linalg.norm(result.vertices_mm - model.evaluate(truth), axis=1)
-        assert np.median(vertex_error) < 0.15 and np.percentile(vertex_error, 95) < 0.6
+        truth_vertices = model.evaluate(truth)
+        # the fitted surface lies on the true one (the scan noise alone is 0.2 mm) ...
+        surface_error = trimesh.proximity.closest_point(trimesh.Trimesh(truth_vertices, model.faces, process=False),
+                                                        result.vertices_mm)[1]
+        assert np.median(surface_error) < 0.06 and np.percentile(surface_error, 95) < 0.25
+        # ... and its vertices sit near their true places: overlapping bone weights let them slide
+        # along the surface by a fraction of a millimetre without changing its shape
+        vertex_error = np.linalg.norm(result.vertices_mm - truth_vertices, axis=1)
+        assert np.median(vertex_error) < 0.25 and np.percentile(vertex_error, 95) < 0.8
         error = np.abs(result.parameters.to_vector() - truth.to_vector())
         specs = parameter_specs()
         parent_location = [e for s, e in zip(specs, error) if s.target == "Size-Bendy" and s.kind == "location"]
@@ -63,7 +70,7 @@ def test_synthetic_scans_are_fitted_and_parameters_recovered(model):
 
 def test_distances_of_a_scan_without_its_outliers_are_written_as_points(model, tmp_path):
     """Outliers removed: the points are no longer the mesh's vertices, so the PLY holds points only."""
-    target, _ = synthetic_scan(model, np.random.default_rng(3))
+    target, _ = synthetic_scan(model, np.random.default_rng(3), outlier_share=0.05)
     assert len(target.points_mm) < len(target.mesh.vertices)
     distance = np.linspace(0.0, 2.0, len(target.points_mm))
     write_distances_ply(tmp_path / "d.ply", target, distance)

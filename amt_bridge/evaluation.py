@@ -12,10 +12,12 @@ from .model import LocalisationModel, Prediction
 
 def compare_conditions(reference: str | os.PathLike, conditions: dict[str, str | os.PathLike],
                        qe_percent: float = 8.0, lateral_angles_deg=None) -> tuple[float, dict[str, Prediction]]:
-    """(S in dB, predictions by name; 'reference' first) for SOFA files of HRIRs or HRTFs."""
+    """(S in dB, predictions by name; 'reference' first) for SOFA files of HRIRs or HRTFs. A reference
+    that cannot reach ``qe_percent`` is calibrated to the closest S of the bracket (a warning; the
+    summary then shows the QE it reached)."""
     reference_set = read_hrtf_set(reference)
     self_model = LocalisationModel(reference_set, reference_set, lateral_angles_deg)
-    sensitivity = self_model.calibrate(qe_percent)
+    sensitivity = self_model.calibrate(qe_percent, closest=True)
     predictions = {"reference": self_model.predict(sensitivity)}
     for name, path in conditions.items():
         predictions[name] = LocalisationModel(read_hrtf_set(path), reference_set, lateral_angles_deg).predict(sensitivity)
@@ -25,5 +27,11 @@ def compare_conditions(reference: str | os.PathLike, conditions: dict[str, str |
 def comparison_summary(reference: str | os.PathLike, qe_percent: float, sensitivity: float,
                        predictions: dict[str, Prediction]) -> dict:
     """JSON-ready summary of :func:`compare_conditions`."""
-    return {"reference": str(Path(reference)), "calibration_qe_percent": qe_percent, "sensitivity_db": sensitivity,
-            "conditions": {name: prediction.as_dict() for name, prediction in predictions.items()}}
+    reached = float(predictions["reference"].qe)
+    summary = {"reference": str(Path(reference)), "calibration_qe_percent": qe_percent, "sensitivity_db": sensitivity,
+               "calibration_reached": bool(abs(reached - qe_percent) < 0.01),
+               "conditions": {name: prediction.as_dict() for name, prediction in predictions.items()}}
+    if not summary["calibration_reached"]:
+        summary["calibration_note"] = (f"the reference cannot reach {qe_percent:g} % quadrant errors in the "
+                                       f"sensitivity bracket; S = {sensitivity:g} dB gives {reached:.2f} %")
+    return summary

@@ -157,14 +157,24 @@ class LocalisationModel:
         return Prediction(tuple(_predict_plane(plane, self.settings, sensitivity, experimental_polar_deg)
                                 for plane in self.planes), sensitivity)
 
-    def calibrate(self, qe_percent: float | None = None, bracket_db: tuple[float, float] | None = None) -> float:
+    def calibrate(self, qe_percent: float | None = None, bracket_db: tuple[float, float] | None = None,
+                  closest: bool = False) -> float:
         """The sensitivity S (dB) at which the mean quadrant error over the planes equals ``qe_percent``
-        (default 8 %): QE grows monotonically with S, so a bracketed root search finds it."""
+        (default 8 %): QE grows monotonically with S, so a bracketed root search finds it.
+
+        A goal outside the QE range of the bracket is an error, or with ``closest`` the bracket end
+        nearest to it (HRTFs with poor spectral cues, e.g. coarse demo heads, keep more quadrant errors
+        than the goal even at the smallest S)."""
         defaults = load_defaults()["evaluation"]
         goal = defaults["calibration_qe_percent"] if qe_percent is None else float(qe_percent)
         low, high = bracket_db or defaults["calibration_bracket_db"]
         qe_low, qe_high = self.predict(low).qe, self.predict(high).qe
         if not qe_low <= goal <= qe_high:
+            if closest:
+                nearest = float(low if goal < qe_low else high)
+                log.warning("no sensitivity in [%g, %g] dB gives %g%% quadrant errors (QE runs from %.2f%% to "
+                            "%.2f%%); using the closest, S = %g dB", low, high, goal, qe_low, qe_high, nearest)
+                return nearest
             raise AmtBridgeError(f"no sensitivity in [{low}, {high}] dB gives {goal}% quadrant errors "
                                  f"(QE runs from {qe_low:.2f}% to {qe_high:.2f}%); choose another goal or bracket")
         return float(brentq(lambda s: self.predict(s).qe - goal, low, high, xtol=1e-6))

@@ -157,15 +157,16 @@ class PinnaModel:
     def folded_faces(self, vertices_mm: np.ndarray) -> np.ndarray:
         """Indices of the faces of a posed pinna (vertices in mm) whose normal turned by more than 90°
         from the template's: folds. The parent bone (rotation <= 25°, positive scales) cannot cause one."""
-        rest = self._rest_face_normals
         tri = np.asarray(vertices_mm, dtype=np.float64)[self.faces]
         normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-        return np.flatnonzero(np.einsum("ij,ij->i", normals, rest) < 0.0)
+        return np.flatnonzero(np.einsum("ij,ij->i", normals, self.rest_face_normals) < 0.0)
 
     @functools.cached_property
-    def _rest_face_normals(self) -> np.ndarray:
+    def rest_face_normals(self) -> np.ndarray:
+        """(faces, 3) unit normals of the template's triangles (outward, project frame)."""
         tri = self.template_vertices_mm[self.faces]
-        return np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        return normals / np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-12)
 
     def mesh(self, params: PinnaParameters | None = None) -> trimesh.Trimesh:
         """The deformed pinna as a trimesh (mm, project frame, template vertex order)."""

@@ -138,6 +138,8 @@ def write_subject_report(subject: str, results: str | os.PathLike, out_html: str
     if localisation:
         rows = [("sensitivity S (dB)", f"{localisation['sensitivity_db']:.3f} "
                  f"(reference calibrated to {localisation['calibration_qe_percent']} % QE)")]
+        if "calibration_note" in localisation:
+            rows.append(("calibration NOT reached", localisation["calibration_note"]))
         rows += [(name, f"QE {c['qe_percent']:.2f} %, PE {c['pe_deg']:.2f} deg")
                  for name, c in localisation["conditions"].items()]
         sections.append(_table(rows))

@@ -121,6 +121,24 @@ def test_self_prediction_is_low_and_another_listener_raises_errors(axd1):
         assert foreign.pe > self_model.predict(sensitivity).pe + 4.0, other.name
 
 
+def test_an_unreachable_calibration_goal_is_an_error_or_the_closest_end_of_the_bracket(axd1):
+    """No S in [0.05, 3] dB gives 60 % QE (chance is about 43-51 %): an error naming the QE range, or,
+    as the workflow asks, the bracket end nearest the goal; the summary then says so."""
+    from amt_bridge.evaluation import compare_conditions, comparison_summary  # noqa: PLC0415
+
+    self_model = LocalisationModel(axd1, axd1)
+    with pytest.raises(AmtBridgeError, match=r"no sensitivity in \[0.05, 3.0\] dB gives 60.0% .*QE runs from"):
+        self_model.calibrate(60.0)
+    assert self_model.calibrate(60.0, closest=True) == 3.0
+    assert self_model.calibrate(0.001, closest=True) == 0.05
+    sensitivity, predictions = compare_conditions(AXD1, {"other": AXD2}, 60.0, [0.0])
+    summary = comparison_summary(AXD1, 60.0, sensitivity, predictions)
+    assert sensitivity == 3.0 and not summary["calibration_reached"]
+    assert f"{predictions['reference'].qe:.2f} %" in summary["calibration_note"]
+    reached = comparison_summary(AXD1, 8.0, *compare_conditions(AXD1, {"other": AXD2}, 8.0, [0.0]))
+    assert reached["calibration_reached"] and "calibration_note" not in reached
+
+
 def test_simulated_hrtf_sofa_input_gives_the_same_prediction_as_its_hrirs(axd1, tmp_path):
     """A SimpleFreeFieldHRTF file (one-sided spectra) is turned into impulse responses first."""
     sofa = sofar.Sofa("SimpleFreeFieldHRTF")

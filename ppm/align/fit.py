@@ -117,9 +117,7 @@ class _Problem:
         self.lower, self.upper = bounds()
         self.scale = np.maximum(self.upper - self.default, self.default - self.lower)
         self.step = 0.02 * self.scale  # finite-difference step per parameter
-        rest_tri = rest[model.faces]
-        rest_normals = np.cross(rest_tri[:, 1] - rest_tri[:, 0], rest_tri[:, 2] - rest_tri[:, 0])
-        self.rest_normals = rest_normals / np.maximum(np.linalg.norm(rest_normals, axis=1, keepdims=True), 1e-12)
+        self.rest_normals = model.rest_face_normals
 
     def residuals(self, vertices: np.ndarray, with_geometry: bool = False):
         """Weighted residual vectors (mm) of both terms, and what is needed for their Jacobians."""

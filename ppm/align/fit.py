@@ -57,6 +57,10 @@ class AlignSettings:
     relative_tolerance: float = 2e-3
     seed: int = 0
 
+    def __post_init__(self) -> None:
+        if not 0.0 <= self.fold_cosine < 1.0:  # the barrier must start before a face folds (cos 0)
+            raise ValueError(f"fold_cosine must be in [0, 1), got {self.fold_cosine}")
+
 
 @dataclasses.dataclass
 class AlignmentResult:
@@ -138,8 +142,9 @@ class _Problem:
         w_b = w_b * s.model_to_target_weight
         fold_faces, r_f, dcos_dv = self.fold_terms(vertices)
         cost = float((w_a * r_a**2).sum() + (w_b * r_b**2).sum() + s.fold_weight * (r_f**2).sum())
+        # a fold (cos < 0) is a turned face (fold_cosine >= 0) whose residual exceeds fold_cosine
         stats = {"median_mm": float(np.median(distance)), "kept_share": float(keep_a.mean()),
-                 "folded_faces": int(len(self.model.folded_faces(vertices)))}
+                 "folded_faces": int((r_f > s.fold_cosine).sum())}
         if not with_geometry:
             return cost, stats
         return cost, stats, (face_ids, bary, normal, r_a, w_a, n_b, r_b, w_b, fold_faces, r_f, dcos_dv)
@@ -215,8 +220,7 @@ def _gauss_newton_stage(problem: _Problem, params: np.ndarray, active: np.ndarra
             delta = np.zeros_like(gradient)
             delta[free] = -np.linalg.solve(system[np.ix_(free, free)], gradient[free])
             trial = params.copy()
-            trial[active] = np.clip(params[active] + delta * problem.scale[active], problem.lower[active],
-                                    problem.upper[active])
+            trial[active] = np.clip(params[active] + delta * problem.scale[active], lower, upper)
             trial_vertices = problem.model.evaluate(PinnaParameters(trial))
             trial_cost, trial_stats, trial_geometry = problem.residuals(trial_vertices, with_geometry=True)
             trial_cost += problem.prior(trial)

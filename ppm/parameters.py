@@ -32,6 +32,8 @@ class ParameterSpec:
 
     `kind` is 'location' (mm), 'rotation' (deg), 'scale' (factor) or 'shape_key' (weight);
     `target` is the bone name or the shape-key name; `axis` is 0, 1, 2 for X, Y, Z, or None.
+    `lower`/`upper` bound what an alignment may reach; `typical_lower`/`typical_upper` are the
+    spread between listeners that random ears are drawn from (inside the bounds).
     """
 
     name: str
@@ -41,6 +43,8 @@ class ParameterSpec:
     default: float
     lower: float
     upper: float
+    typical_lower: float
+    typical_upper: float
 
     @property
     def unit(self) -> str:
@@ -54,9 +58,19 @@ def model_layout() -> dict:
     return yaml.safe_load(text)
 
 
-def _vector_specs(kind: str, bone: str, bounds: list[float], default: float) -> list[ParameterSpec]:
+def _ranges(layout: dict, group: str, key: str) -> tuple[float, float, float, float]:
+    """(lower, upper, typical_lower, typical_upper) of one parameter group from parameters.yaml."""
+    lower, upper = map(float, layout["bounds"][group][key])
+    typical_lower, typical_upper = map(float, layout.get("typical", {}).get(group, {}).get(key, (lower, upper)))
+    if not lower <= typical_lower <= typical_upper <= upper:
+        raise PpmError(f"ppm/data/parameters.yaml: typical {group}.{key} [{typical_lower}, {typical_upper}] "
+                       f"must lie inside the bounds [{lower}, {upper}]")
+    return lower, upper, typical_lower, typical_upper
+
+
+def _vector_specs(kind: str, bone: str, ranges: tuple[float, ...], default: float) -> list[ParameterSpec]:
     stem = {"location": "Location", "rotation": "Rotation", "scale": "Scale"}[kind]
-    return [ParameterSpec(f"{stem}_{bone}_{axis}", kind, bone, i, default, *map(float, bounds))
+    return [ParameterSpec(f"{stem}_{bone}_{axis}", kind, bone, i, default, *ranges)
             for i, axis in enumerate(AXES)]
 
 
@@ -64,20 +78,20 @@ def _vector_specs(kind: str, bone: str, bounds: list[float], default: float) -> 
 def parameter_specs() -> tuple[ParameterSpec, ...]:
     """All 144 parameters in their canonical order: parent bone, then per curve, then shape keys."""
     layout = model_layout()
-    bounds = layout["bounds"]
     parent = layout["parent_bone"]
-    specs = (_vector_specs("location", parent, bounds["parent"]["location_mm"], 0.0)
-             + _vector_specs("rotation", parent, bounds["parent"]["rotation_deg"], 0.0)
-             + _vector_specs("scale", parent, bounds["parent"]["scale"], 1.0))
+    specs = (_vector_specs("location", parent, _ranges(layout, "parent", "location_mm"), 0.0)
+             + _vector_specs("rotation", parent, _ranges(layout, "parent", "rotation_deg"), 0.0)
+             + _vector_specs("scale", parent, _ranges(layout, "parent", "scale"), 1.0))
     for curve in layout["curves"]:
         for end in ("Start", "End"):
             bone = f"{curve}-{end}"
-            specs += _vector_specs("location", bone, bounds["control"]["location_mm"], 0.0)
-            specs += _vector_specs("rotation", bone, bounds["control"]["rotation_deg"], 0.0)
+            specs += _vector_specs("location", bone, _ranges(layout, "control", "location_mm"), 0.0)
+            specs += _vector_specs("rotation", bone, _ranges(layout, "control", "rotation_deg"), 0.0)
         specs.append(ParameterSpec(f"Scale_{curve}-Bendy", "scale", f"{curve}-Bendy", None, 1.0,
-                                   *map(float, bounds["bendy"]["scale"])))
+                                   *_ranges(layout, "bendy", "scale")))
     for key, (lower, upper) in layout["shape_keys"].items():
-        specs.append(ParameterSpec(f"Shape_key_{key}", "shape_key", key, None, 0.0, float(lower), float(upper)))
+        specs.append(ParameterSpec(f"Shape_key_{key}", "shape_key", key, None, 0.0, float(lower), float(upper),
+                                   float(lower), float(upper)))
     return tuple(specs)
 
 
@@ -260,11 +274,18 @@ def _checked(vector: np.ndarray, out_of_range: str) -> np.ndarray:
     return vector.copy()
 
 
+def typical_ranges() -> tuple[np.ndarray, np.ndarray]:
+    """(144,) lower and upper ends of the typical spread between listeners, in canonical order."""
+    specs = parameter_specs()
+    return np.array([s.typical_lower for s in specs]), np.array([s.typical_upper for s in specs])
+
+
 def random_parameters(rng: np.random.Generator, fraction: float = 1.0) -> PinnaParameters:
-    """Parameters drawn uniformly within `fraction` of each range around the default (for tests, demos)."""
+    """A random ear: parameters drawn uniformly within `fraction` of each typical range around the
+    default (for synthetic scans, tests, demos)."""
     specs = parameter_specs()
     default = np.array([s.default for s in specs])
-    lower, upper = bounds()
+    lower, upper = typical_ranges()
     low = default + fraction * (lower - default)
     high = default + fraction * (upper - default)
     return PinnaParameters(rng.uniform(low, high))

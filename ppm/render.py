@@ -72,8 +72,8 @@ def range_sheet_items() -> list[tuple[str, dict[str, float], dict[str, float]]]:
     """(title, lower-limit parameters, upper-limit parameters) for each curve and shape key.
 
     A curve is shown with both its control bones moved along their Z axis (the surface normal) to
-    the location bounds; the parent curve with its isotropic size at the scale bounds; a shape key
-    at its weight bounds.
+    the ends of their typical spread between listeners (the alignment's bounds are wider); the parent
+    curve with its isotropic size at the scale bounds; a shape key at its weight bounds.
     """
     specs = {s.name: s for s in parameter_specs()}
     layout = model_layout()
@@ -82,7 +82,8 @@ def range_sheet_items() -> list[tuple[str, dict[str, float], dict[str, float]]]:
               {f"Scale_{parent}_{a}": specs[f"Scale_{parent}_{a}"].upper for a in "XYZ"})]
     for curve in layout["curves"]:
         names = [f"Location_{curve}-{end}_Z" for end in ("Start", "End")]
-        items.append((f"{curve} (location Z)", {n: specs[n].lower for n in names}, {n: specs[n].upper for n in names}))
+        items.append((f"{curve} (location Z)", {n: specs[n].typical_lower for n in names},
+                      {n: specs[n].typical_upper for n in names}))
     for key in layout["shape_keys"]:
         name = f"Shape_key_{key}"
         items.append((key, {name: specs[name].lower}, {name: specs[name].upper}))

@@ -121,10 +121,10 @@ def _quality(model, params: PinnaParameters) -> tuple[int, float, float, float]:
     return flipped, float(cos_adjacent.min()), float(ratio.min()), float(ratio.max())
 
 
-def test_random_parameters_inside_the_bounds_give_a_clean_surface(model):
+def test_random_ears_give_a_clean_surface(model):
     """No flipped triangle, no new fold sharper than 120 degrees, no tear (edge stretched over 3x or
-    squeezed under 0.3x) for parameter sets drawn uniformly inside half of every range (where the
-    synthetic and demo ears are drawn; towards the outer bounds the alignment's fold barrier keeps
+    squeezed under 0.3x) for parameter sets drawn uniformly inside half of every typical range (where
+    the synthetic and demo ears are drawn; towards the wider bounds the alignment's fold barrier keeps
     the surface clean, see test_ppm_align)."""
     rng = np.random.default_rng(20261123)
     for _ in range(25):

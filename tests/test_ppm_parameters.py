@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from ppm.errors import PpmError
-from ppm.parameters import PinnaParameters, bounds, parameter_names, parameter_specs, random_parameters
+from ppm.parameters import PinnaParameters, bounds, parameter_names, parameter_specs, random_parameters, typical_ranges
 
 
 def test_exactly_144_parameters_in_the_spec_groups():
@@ -43,6 +43,19 @@ def test_defaults_and_vector_round_trip(rng):
     again = PinnaParameters.from_vector(params.to_vector())
     assert again == params
     assert PinnaParameters.from_dict(params.to_dict()) == params
+
+
+def test_random_ears_are_drawn_from_the_typical_spread_inside_the_bounds(rng):
+    lower, upper = bounds()
+    typical_lower, typical_upper = typical_ranges()
+    assert (lower <= typical_lower).all() and (typical_upper <= upper).all()
+    name = parameter_names().index("Location_Tragus-Start_X")
+    assert (typical_lower[name], typical_upper[name]) == (-2.0, 2.0) and (lower[name], upper[name]) == (-6.0, 6.0)
+    drawn = np.array([random_parameters(rng, 0.5).to_vector() for _ in range(200)])
+    default = np.array([s.default for s in parameter_specs()])
+    assert (drawn >= default + 0.5 * (typical_lower - default) - 1e-12).all()
+    assert (drawn <= default + 0.5 * (typical_upper - default) + 1e-12).all()
+    assert np.abs(drawn[:, name]).max() > 0.9  # spans the half range, not a point
 
 
 def test_csv_and_json_round_trip(tmp_path, rng):

@@ -8,8 +8,8 @@ A demo subject is laid out like a dataset subject folder:
 - ``truth_parameters.json`` / ``.csv``: the PPM parameters its ears were made with (the ground truth);
 - ``demo.json``: how it was made (seed, settings), and that it is demo fidelity.
 
-The pinna is the packaged default PPM posed with random in-range parameters; the head is the parametric
-head of `demo.head` with that pinna on both sides.
+The pinna is the packaged default PPM posed with random parameters from the typical spread; the head
+is the parametric head of `demo.head` with that pinna on both sides.
 """
 from __future__ import annotations
 

@@ -1,8 +1,8 @@
 """Synthetic scans made by the PPM itself, with scan-like defects, where the true parameters are known.
 
-A random in-range parameter set poses the template; the surface gets Gaussian noise along the
-normals, a few holes (geodesic discs of missing triangles) and a share of outlier vertices thrown
-off the surface. Millimetres, project frame.
+A random ear (parameters drawn within the typical spread between listeners, inside the bounds) poses
+the template; the surface gets Gaussian noise along the normals, a few holes (geodesic discs of missing
+triangles) and a share of outlier vertices thrown off the surface. Millimetres, project frame.
 """
 from __future__ import annotations
 
@@ -41,7 +41,7 @@ def add_scan_defects(mesh: trimesh.Trimesh, rng: np.random.Generator, *, noise_m
 def synthetic_scan(model: PinnaModel, rng: np.random.Generator, *, fraction: float = 0.5, noise_mm: float = 0.2,
                    holes: int = 3, hole_radius_mm: float = 4.0, outlier_share: float = 0.02,
                    params: PinnaParameters | None = None) -> tuple[Target, PinnaParameters]:
-    """A defective scan of the PPM posed with random parameters (within `fraction` of each range).
+    """A defective scan of the PPM posed with random parameters (within `fraction` of each typical range).
 
     Returns the target and the true parameters.
     """

@@ -82,13 +82,15 @@ def parameter_specs() -> tuple[ParameterSpec, ...]:
     specs = (_vector_specs("location", parent, _ranges(layout, "parent", "location_mm"), 0.0)
              + _vector_specs("rotation", parent, _ranges(layout, "parent", "rotation_deg"), 0.0)
              + _vector_specs("scale", parent, _ranges(layout, "parent", "scale"), 1.0))
+    control_location = _ranges(layout, "control", "location_mm")
+    control_rotation = _ranges(layout, "control", "rotation_deg")
+    bendy_scale = _ranges(layout, "bendy", "scale")
     for curve in layout["curves"]:
         for end in ("Start", "End"):
             bone = f"{curve}-{end}"
-            specs += _vector_specs("location", bone, _ranges(layout, "control", "location_mm"), 0.0)
-            specs += _vector_specs("rotation", bone, _ranges(layout, "control", "rotation_deg"), 0.0)
-        specs.append(ParameterSpec(f"Scale_{curve}-Bendy", "scale", f"{curve}-Bendy", None, 1.0,
-                                   *_ranges(layout, "bendy", "scale")))
+            specs += _vector_specs("location", bone, control_location, 0.0)
+            specs += _vector_specs("rotation", bone, control_rotation, 0.0)
+        specs.append(ParameterSpec(f"Scale_{curve}-Bendy", "scale", f"{curve}-Bendy", None, 1.0, *bendy_scale))
     for key, (lower, upper) in layout["shape_keys"].items():
         specs.append(ParameterSpec(f"Shape_key_{key}", "shape_key", key, None, 0.0, float(lower), float(upper),
                                    float(lower), float(upper)))

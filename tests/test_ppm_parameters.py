@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 
 from ppm.errors import PpmError
-from ppm.parameters import PinnaParameters, bounds, parameter_names, parameter_specs, random_parameters, typical_ranges
+from ppm.parameters import (PinnaParameters, bounds, parameter_names, parameter_specs, random_parameters,
+                            typical_ranges)
 
 
 def test_exactly_144_parameters_in_the_spec_groups():

@@ -64,7 +64,7 @@ def _ranges(layout: dict, group: str, key: str) -> tuple[float, float, float, fl
     typical_lower, typical_upper = map(float, layout.get("typical", {}).get(group, {}).get(key, (lower, upper)))
     if not lower <= typical_lower <= typical_upper <= upper:
         raise PpmError(f"ppm/data/parameters.yaml: typical {group}.{key} [{typical_lower}, {typical_upper}] "
-                       f"must lie inside the bounds [{lower}, {upper}]")
+                       f"must lie inside the bounds [{lower}, {upper}]; narrow the typical range or widen the bounds")
     return lower, upper, typical_lower, typical_upper
 
 

@@ -61,10 +61,12 @@ def model_layout() -> dict:
 def _ranges(layout: dict, group: str, key: str) -> tuple[float, float, float, float]:
     """(lower, upper, typical_lower, typical_upper) of one parameter group from parameters.yaml."""
     lower, upper = map(float, layout["bounds"][group][key])
-    typical_lower, typical_upper = map(float, layout.get("typical", {}).get(group, {}).get(key, (lower, upper)))
+    typical = layout.get("typical", {}).get(group, {}).get(key, (lower, upper))
+    typical_lower, typical_upper = map(float, typical)
     if not lower <= typical_lower <= typical_upper <= upper:
         raise PpmError(f"ppm/data/parameters.yaml: typical {group}.{key} [{typical_lower}, {typical_upper}] "
-                       f"must lie inside the bounds [{lower}, {upper}]; narrow the typical range or widen the bounds")
+                       f"must lie inside the bounds [{lower}, {upper}]; narrow the typical range or widen "
+                       "the bounds")
     return lower, upper, typical_lower, typical_upper
 
 
@@ -90,7 +92,8 @@ def parameter_specs() -> tuple[ParameterSpec, ...]:
             bone = f"{curve}-{end}"
             specs += _vector_specs("location", bone, control_location, 0.0)
             specs += _vector_specs("rotation", bone, control_rotation, 0.0)
-        specs.append(ParameterSpec(f"Scale_{curve}-Bendy", "scale", f"{curve}-Bendy", None, 1.0, *bendy_scale))
+        specs.append(ParameterSpec(f"Scale_{curve}-Bendy", "scale", f"{curve}-Bendy", None, 1.0,
+                                   *bendy_scale))
     for key, (lower, upper) in layout["shape_keys"].items():
         specs.append(ParameterSpec(f"Shape_key_{key}", "shape_key", key, None, 0.0, float(lower), float(upper),
                                    float(lower), float(upper)))

@@ -66,7 +66,8 @@ def hrtf_to_hrir(spectra: np.ndarray, frequencies_hz: np.ndarray, source: str) -
     """Impulse responses from one-sided spectra (..., K) on the grid f_k = k Δf (k = 1..K or 0..K),
     as Mesh2HRTF writes them (without a 0 Hz bin, it is set to the magnitude of the lowest bin, phase 0).
     The highest frequency is taken as Nyquist, so the sampling rate is 2 f_K. Responses are shifted by
-    ``PRE_DELAY_S`` so that the head's lead (up to ~0.7 ms) does not wrap around."""
+    ``PRE_DELAY_S`` so that the head's lead (up to ~0.7 ms) does not wrap around. Spectra at any other
+    (sparse) set are rebuilt at 48 kHz by :func:`mesh2hrtf_io.sparse_hrtf.rebuild_hrirs`."""
     frequencies = np.asarray(frequencies_hz, dtype=np.float64).ravel()
     if frequencies.size < 8:
         raise AmtBridgeError(f"{source}: {frequencies.size} frequencies are too few for impulse responses")
@@ -75,8 +76,7 @@ def hrtf_to_hrir(spectra: np.ndarray, frequencies_hz: np.ndarray, source: str) -
         dc, spectra, frequencies = spectra[..., :1].real, spectra[..., 1:], frequencies[1:]
     step = frequencies[0]
     if not np.allclose(frequencies, step * np.arange(1, frequencies.size + 1), rtol=0, atol=1e-6 * step):
-        raise AmtBridgeError(f"{source}: frequencies must be the multiples k·Δf (k = 1, 2, ...) of one step to "
-                             "form impulse responses; recompute the HRTFs on such a grid")
+        return _rebuilt_from_sparse_set(spectra, frequencies, dc, source)
     if dc is None:
         dc = np.abs(spectra[..., :1])
     full = np.concatenate([dc, spectra], axis=-1)
@@ -84,6 +84,37 @@ def hrtf_to_hrir(spectra: np.ndarray, frequencies_hz: np.ndarray, source: str) -
     sampling_rate = 2.0 * frequencies[-1]
     irs = np.fft.irfft(full, n=n_samples, axis=-1)
     return np.roll(irs, int(round(PRE_DELAY_S * sampling_rate)), axis=-1), sampling_rate
+
+
+def _rebuilt_from_sparse_set(spectra: np.ndarray, frequencies: np.ndarray, dc, source: str) -> tuple[np.ndarray, float]:
+    """HRIRs at 48 kHz (320 taps, or more for a set above 24 kHz) rebuilt from a sparse frequency set
+    (mesh2hrtf_io.sparse_hrtf), shifted by ``PRE_DELAY_S``."""
+    from mesh2hrtf_io.errors import Mesh2HrtfIoError  # noqa: PLC0415
+    from mesh2hrtf_io.sparse_hrtf import rebuild_hrirs  # noqa: PLC0415
+
+    rate = max(48000.0, 2 * float(np.ceil(frequencies[-1] / 1000) * 1000))
+    if dc is not None:
+        spectra, frequencies = np.concatenate([dc, spectra], axis=-1), np.concatenate([[0.0], frequencies])
+    try:
+        irs = rebuild_hrirs(spectra, frequencies, rate, int(2 * round(rate / 300)), PRE_DELAY_S, source)
+    except Mesh2HrtfIoError as exc:
+        raise AmtBridgeError(str(exc)) from exc
+    return irs, rate
+
+
+def resampled_at(hrirs: HrirSet, frequencies_hz) -> HrirSet:
+    """The same set sampled at ``frequencies_hz`` (exact DFT) and rebuilt at its own rate and length, as HRTFs
+    solved at that set are: compares a full reference like with like against solved conditions."""
+    from mesh2hrtf_io.errors import Mesh2HrtfIoError  # noqa: PLC0415
+    from mesh2hrtf_io.sparse_hrtf import rebuild_hrirs, sample_spectra  # noqa: PLC0415
+
+    frequencies = np.asarray(frequencies_hz, dtype=np.float64)
+    try:
+        irs = rebuild_hrirs(sample_spectra(hrirs.irs, hrirs.sampling_rate_hz, frequencies), frequencies,
+                            hrirs.sampling_rate_hz, hrirs.irs.shape[-1], 0.0, hrirs.source)
+    except Mesh2HrtfIoError as exc:
+        raise AmtBridgeError(str(exc)) from exc
+    return dataclasses.replace(hrirs, irs=irs, source=f"{hrirs.source} at {frequencies.size} frequencies")
 
 
 def read_hrtf_set(path: str | os.PathLike) -> HrirSet:

@@ -12,13 +12,16 @@ import numpy as np
 from ppm.errors import PpmError
 
 from .errors import Mesh2HrtfIoError
+from .frequency_sets import check_frequency_set, frequencies_from_spec, frequency_list, presets
 
 
-def frequency_list(minimum_hz: float, maximum_hz: float, step_hz: float) -> np.ndarray:
-    """minimum, minimum + step, ..., up to maximum (Hz); for HRIRs use minimum = step."""
-    if not 0 < minimum_hz <= maximum_hz or step_hz <= 0:
-        raise Mesh2HrtfIoError(f"frequencies need 0 < min <= max and step > 0, got {minimum_hz}, {maximum_hz}, {step_hz}")
-    return minimum_hz + step_hz * np.arange(int(np.floor((maximum_hz - minimum_hz) / step_hz + 1e-9)) + 1)
+def _export_frequencies(args) -> np.ndarray:
+    """The export's set: an explicit list, a preset, or the linear grid of --fmin/--fmax/--fstep."""
+    if args.frequencies:
+        return check_frequency_set(args.frequencies, "--frequencies")
+    if args.preset:
+        return frequencies_from_spec({"preset": args.preset}, "--preset")
+    return frequency_list(args.fmin or args.fstep, args.fmax, args.fstep)
 
 
 def _export(args) -> dict:
@@ -35,7 +38,7 @@ def _export(args) -> dict:
     sides = {"both": ("left", "right"), "left": ("left",), "right": ("right",)}[args.ears]
     ears = {side: ear_canal_elements(head, side, source=str(args.head)) for side in sides}
     grids = [sagittal_grid(polar_step_deg=args.polar_step)] + [grid_from_sofa(path) for path in args.grid_sofa]
-    frequencies = frequency_list(args.fmin or args.fstep, args.fmax, args.fstep)
+    frequencies = _export_frequencies(args)
     layout = write_project(args.project, head.vertices, head.faces, ears, grids, frequencies,
                            source_type={"both": "Both ears", "left": "Left ear", "right": "Right ear"}[args.ears],
                            title=args.head.stem, compute_hrirs=args.hrirs)
@@ -56,7 +59,8 @@ def _solve(args) -> dict:
 def _collect(args) -> dict:
     from .sofa_out import collect_sofa  # noqa: PLC0415
 
-    return {"files": [str(p) for p in collect_sofa(args.project, args.output)]}
+    return {"files": [str(p) for p in collect_sofa(args.project, args.output, hrir_sampling_rate_hz=args.hrir_rate,
+                                                   hrir_samples=args.hrir_samples)]}
 
 
 def _cost(args) -> dict:
@@ -75,6 +79,9 @@ def main(argv: list[str] | None = None) -> int:
     export.add_argument("--fmin", type=float, default=None, help="lowest frequency (Hz; default = step)")
     export.add_argument("--fmax", type=float, default=18000.0)
     export.add_argument("--fstep", type=float, default=100.0)
+    export.add_argument("--preset", choices=sorted(presets()), default=None,
+                        help="a named frequency set (mesh2hrtf_io/data/frequency_sets.yaml), e.g. evaluation")
+    export.add_argument("--frequencies", type=float, nargs="*", default=None, help="an explicit list (Hz)")
     export.add_argument("--polar-step", type=float, default=2.5, help="sagittal-plane grid step (deg)")
     export.add_argument("--grid-sofa", type=Path, nargs="*", default=[], help="extra grids from SOFA source positions")
     export.add_argument("--hrirs", action="store_true", help="ask for HRIR SOFA files too")
@@ -88,6 +95,8 @@ def main(argv: list[str] | None = None) -> int:
     collect = sub.add_parser("collect", help="write HRTF/HRIR SOFA files of a solved project")
     collect.add_argument("project", type=Path)
     collect.add_argument("--output", type=Path, default=None)
+    collect.add_argument("--hrir-rate", type=float, default=48000.0, help="rate of HRIRs rebuilt from a sparse set (Hz)")
+    collect.add_argument("--hrir-samples", type=int, default=320, help="taps of HRIRs rebuilt from a sparse set")
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(message)s")
     handlers = {"export": _export, "solve": _solve, "collect": _collect, "cost": _cost}

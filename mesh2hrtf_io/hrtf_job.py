@@ -11,12 +11,11 @@ import os
 import tempfile
 from pathlib import Path
 
-import numpy as np
 
 from ppm.atomic import write_text_atomic
 from ppm.progress import Progress
 
-from .cli import frequency_list
+from .frequency_sets import describe_set, frequencies_from_spec
 from .errors import Mesh2HrtfIoError
 from .grids import sagittal_grid
 from .project import write_project
@@ -38,13 +37,12 @@ def export_head_project(head_path: str | os.PathLike, project: str | os.PathLike
     head = trimesh.load(head_path, process=False, force="mesh")
     sides = ("left", "right") if settings["ears"] == "both" else (settings["ears"],)
     ears = {side: ear_canal_elements(head, side, source=str(head_path)) for side in sides}
-    f = settings["frequencies_hz"]
-    frequencies = frequency_list(f["min"], f["max"], f["step"])
+    frequencies = frequencies_from_spec(settings["frequencies_hz"])
     layout = write_project(project, head.vertices, head.faces, ears, [sagittal_grid(polar_step_deg=settings["polar_step_deg"])],
                            frequencies, source_type=SOURCE_TYPES[settings["ears"]], title=head_path.parent.name,
-                           compute_hrirs=bool(np.isclose(f["min"], f["step"])))
-    log.info("exported %s: %d elements, ears %s, %d frequencies", project, layout.n_object_elements,
-             layout.ear_ranges, len(frequencies))
+                           compute_hrirs=True)
+    log.info("exported %s: %d elements, ears %s, %s", project, layout.n_object_elements, layout.ear_ranges,
+             describe_set(frequencies))
 
 
 def solve_numcalc_steps(project: str | os.PathLike, source: int, steps, status_path: str | os.PathLike,
@@ -71,12 +69,17 @@ def solve_embedded(project: str | os.PathLike, status_path: str | os.PathLike) -
     write_text_atomic(status_path, json.dumps(summary, indent=2) + "\n")
 
 
-def collect(project: str | os.PathLike, hrtf_path: str | os.PathLike, hrir_path: str | os.PathLike) -> None:
-    """SOFA files of the sagittal-plane grid, moved to the declared outputs."""
+def collect(project: str | os.PathLike, hrtf_path: str | os.PathLike, hrir_path: str | os.PathLike,
+            hrir: dict | None = None) -> None:
+    """SOFA files of the sagittal-plane grid, moved to the declared outputs; ``hrir`` (config hrtf.hrir:
+    sampling_rate_hz, n_samples) sets the HRIRs rebuilt from a sparse frequency set."""
+    hrir = hrir or {"sampling_rate_hz": 48000.0, "n_samples": 320}
     from .sofa_out import collect_sofa  # noqa: PLC0415
 
     with tempfile.TemporaryDirectory(dir=Path(hrtf_path).parent) as tmp:
-        written = {p.name: p for p in collect_sofa(project, tmp, hrirs=True)}
+        written = {p.name: p for p in collect_sofa(project, tmp, hrirs=True,
+                                                   hrir_sampling_rate_hz=hrir["sampling_rate_hz"],
+                                                   hrir_samples=hrir["n_samples"])}
         name = read_project(project).grids[0].name
         for kind, target in (("HRTF", hrtf_path), ("HRIR", hrir_path)):
             os.replace(written[f"{kind}_{name}.sofa"], target)

@@ -23,6 +23,7 @@ from .checks import check_mesh
 from .constants import (DENSITY_KG_M3, EAR_VELOCITY_M_S, GRID_START_ID, MESH2HRTF_VERSION, SOURCE_TO_ROOT,
                         SPEED_OF_SOUND_M_S)
 from .errors import Mesh2HrtfIoError
+from .frequency_sets import is_linear_grid
 from .grids import EvaluationGrid
 from .units import mm_to_m
 
@@ -188,7 +189,7 @@ def write_project(folder: str | os.PathLike, vertices_mm: np.ndarray, faces: np.
             ear_vertices = vertices_mm[np.unique(faces[chosen[ear]])]
             centres.append(mm_to_m((ear_vertices.min(axis=0) + ear_vertices.max(axis=0)) / 2).tolist())
             areas.append(float(mesh.area_faces[chosen[ear]].sum() / 1e6))
-        step = float(frequencies[1] - frequencies[0]) if len(frequencies) > 1 else float(frequencies[0])
+        step = float(frequencies[0]) if is_linear_grid(frequencies) or len(frequencies) == 1 else 0.0
         parameters = {
             "projectTitle": title, "Mesh2HRTF_Version": MESH2HRTF_VERSION, "BEM_Type": "ML-FMM BEM",
             "sourceType": source_type, "numSources": len(ears),

@@ -3,9 +3,11 @@
 Per evaluation grid: ``HRTF_<grid>.sofa`` (SimpleFreeFieldHRTF with 2 ears, GeneralTF with one),
 pressures divided by the free-field pressure of a point source at the origin with the ear's volume
 velocity (at the smallest grid radius), in NumCalc's e^{-iωt} convention as Mesh2HRTF stores them;
-and, when the frequencies are Δf, 2Δf, ..., f_max, ``HRIR_<grid>.sofa`` (SimpleFreeFieldHRIR /
-GeneralFIR) at 2·f_max with a 0 Hz bin of 1, conjugated to the usual e^{+iωt} DFT convention and
-shifted by 30 cm of travel time to be causal. Files are verified by sofar and written atomically.
+and ``HRIR_<grid>.sofa`` (SimpleFreeFieldHRIR / GeneralFIR): when the frequencies are Δf, 2Δf, ...,
+f_max, exactly at 2·f_max with a 0 Hz bin of 1, conjugated to the usual e^{+iωt} DFT convention and
+shifted by 30 cm of travel time to be causal; for any other (sparse) set, rebuilt at a chosen rate and
+length by :func:`mesh2hrtf_io.sparse_hrtf.rebuild_hrirs` with the same 30 cm shift. Each file says in
+its GLOBAL_Comment how it was made. Files are verified by sofar and written atomically.
 """
 from __future__ import annotations
 
@@ -17,8 +19,10 @@ import numpy as np
 from ppm.atomic import atomic_path
 
 from .errors import Mesh2HrtfIoError
+from .frequency_sets import describe_set, is_linear_grid
 from .project_reader import Project, read_project
 from .results import missing_steps, read_eval_grid_pressure
+from .sparse_hrtf import METHOD_NOTE, rebuild_hrirs
 
 APPLICATION = "ppm-hrtf mesh2hrtf_io"
 CAUSAL_SHIFT_M = 0.30
@@ -72,6 +76,14 @@ def hrirs_from_hrtfs(hrtf: np.ndarray, frequencies_hz: np.ndarray, speed_of_soun
     return np.roll(hrir, shift, axis=-1), sampling_rate
 
 
+def rebuilt_hrirs(hrtf: np.ndarray, frequencies_hz: np.ndarray, speed_of_sound_m_s: float,
+                  sampling_rate_hz: float, n_samples: int, source: str) -> np.ndarray:
+    """Impulse responses (..., n_samples) rebuilt from referenced HRTFs (e^{-iωt}) at a sparse set, shifted
+    by 30 cm of travel time like the exact ones."""
+    return rebuild_hrirs(np.conj(hrtf), frequencies_hz, sampling_rate_hz, n_samples,
+                         delay_shift_s=CAUSAL_SHIFT_M / speed_of_sound_m_s, source=source)
+
+
 def _receivers(project: Project) -> np.ndarray:
     centres = np.atleast_2d(np.asarray(project.parameters.get("sourceCenter", [[0, 0, 0]] * len(project.sources)),
                                        dtype=np.float64))
@@ -106,8 +118,12 @@ def _write(sofa, path: Path) -> Path:
 
 
 def collect_sofa(folder: str | os.PathLike, output_folder: str | os.PathLike | None = None,
-                 hrirs: bool | None = None) -> list[Path]:
-    """Write HRTF (and HRIR) SOFA files for every grid of a solved project; returns their paths."""
+                 hrirs: bool | None = None, hrir_sampling_rate_hz: float = 48000.0,
+                 hrir_samples: int = 320) -> list[Path]:
+    """Write HRTF (and HRIR) SOFA files for every grid of a solved project; returns their paths.
+
+    HRIRs of a linear grid Δf..f_max are exact (rate 2·f_max); those of any other set are rebuilt at
+    ``hrir_sampling_rate_hz`` with ``hrir_samples`` taps."""
     project = read_project(folder)
     output = Path(output_folder) if output_folder else project.folder / "Output2HRTF"
     pressure = referenced_pressure(project)
@@ -122,12 +138,21 @@ def collect_sofa(folder: str | os.PathLike, output_folder: str | os.PathLike | N
         sofa = _sofa("SimpleFreeFieldHRTF" if two_ears else "GeneralTF", project, grid.points_m, title)
         sofa.Data_Real, sofa.Data_Imag = block.real, block.imag
         sofa.N = project.frequencies_hz
+        sofa.GLOBAL_Comment += f"; solved at {describe_set(project.frequencies_hz)}"
         written.append(_write(sofa, output / f"HRTF_{grid.name}.sofa"))
         if hrirs:
             if not project.parameters.get("reference", True):
                 raise Mesh2HrtfIoError("HRIRs need referenced HRTFs (parameters.json: reference true)")
-            impulse, rate = hrirs_from_hrtfs(block, project.frequencies_hz, project.speed_of_sound_m_s)
+            if is_linear_grid(project.frequencies_hz):
+                impulse, rate = hrirs_from_hrtfs(block, project.frequencies_hz, project.speed_of_sound_m_s)
+                how = f"inverse DFT of {describe_set(project.frequencies_hz)}, 0 Hz = 1"
+            else:
+                rate = float(hrir_sampling_rate_hz)
+                impulse = rebuilt_hrirs(block, project.frequencies_hz, project.speed_of_sound_m_s, rate, hrir_samples,
+                                        f"{project.folder} grid {grid.name}")
+                how = f"rebuilt from {describe_set(project.frequencies_hz)}: {METHOD_NOTE}"
             sofa = _sofa("SimpleFreeFieldHRIR" if two_ears else "GeneralFIR", project, grid.points_m, title)
+            sofa.GLOBAL_Comment += f"; HRIRs: {how}; shifted by {CAUSAL_SHIFT_M * 100:g} cm of travel time"
             sofa.Data_IR, sofa.Data_SamplingRate = impulse, rate
             sofa.Data_Delay = np.zeros((1, len(project.sources)))
             written.append(_write(sofa, output / f"HRIR_{grid.name}.sofa"))

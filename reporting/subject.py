@@ -140,6 +140,11 @@ def write_subject_report(subject: str, results: str | os.PathLike, out_html: str
                  f"(reference calibrated to {localisation['calibration_qe_percent']} % QE)")]
         if "calibration_note" in localisation:
             rows.append(("calibration NOT reached", localisation["calibration_note"]))
+        if "frequency_set" in localisation:
+            frequency_set = localisation["frequency_set"]
+            rows.append(("frequencies solved", frequency_set["description"]
+                         + ("; the reference HRIRs sampled at the same set and rebuilt the same way"
+                            if frequency_set.get("reference_rebuilt_at_set") else "")))
         rows += [(name, f"QE {c['qe_percent']:.2f} %, PE {c['pe_deg']:.2f} deg")
                  for name, c in localisation["conditions"].items()]
         sections.append(_table(rows))

@@ -83,11 +83,11 @@ HRTF_VARIANTS = ("reference", "ppm")
 
 
 def hrtf_frequencies():
-    """Frequencies (Hz) of the HRTF projects: min, min + step, ..., max from config hrtf.frequencies_hz."""
-    from mesh2hrtf_io.cli import frequency_list
+    """Frequencies (Hz) of the HRTF projects, from config hrtf.frequencies_hz (any form of
+    mesh2hrtf_io/data/frequency_sets.yaml)."""
+    from mesh2hrtf_io.frequency_sets import frequencies_from_spec
 
-    f = config["hrtf"]["frequencies_hz"]
-    return frequency_list(f["min"], f["max"], f["step"])
+    return frequencies_from_spec(config["hrtf"]["frequencies_hz"])
 
 
 def hrtf_head_mesh(wildcards):
@@ -148,6 +148,17 @@ def reference_sofa(wildcards):
     if given.is_file():
         return str(given)
     return f"results/{wildcards.subject}/hrtf/reference/HRIR_SagittalPlanes.sofa"
+
+
+def reference_frequencies(wildcards):
+    """The sparse set the PPM head was solved at, when the reference is the dataset's own (full) HRIR file:
+    the localisation rule samples and rebuilds the reference there, like with like. None otherwise."""
+    from mesh2hrtf_io.frequency_sets import is_linear_grid
+
+    frequencies = hrtf_frequencies()
+    if is_linear_grid(frequencies) or not reference_sofa(wildcards).startswith(str(DATA_ROOT)):
+        return None
+    return frequencies.tolist()
 
 
 def subject_report_inputs(wildcards):

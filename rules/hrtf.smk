@@ -69,6 +69,8 @@ rule collect_sofa:
         hrir="results/{subject}/hrtf/{variant}/HRIR_SagittalPlanes.sofa",
     log:
         "logs/hrtf/collect_sofa/{subject}_{variant}.log",
+    params:
+        hrir=lambda wc: config["hrtf"]["hrir"],
     benchmark:
         "benchmarks/timings/hrtf/collect_sofa/{subject}_{variant}.tsv"
     threads: 1

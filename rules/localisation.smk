@@ -17,6 +17,8 @@ rule localisation:
         "benchmarks/timings/localisation/{subject}.tsv"
     params:
         settings=lambda wc: config["localisation"],
+        reference_frequencies=reference_frequencies,
+        frequency_set=lambda wc: config["hrtf"]["frequencies_hz"],
     threads: 1
     resources:
         mem_mb=2000,

@@ -9,4 +9,4 @@ configure_logging(snakemake)  # noqa: F821
 
 from mesh2hrtf_io.hrtf_job import collect  # noqa: E402
 
-collect(snakemake.input.project, snakemake.output.hrtf, snakemake.output.hrir)  # noqa: F821
+collect(snakemake.input.project, snakemake.output.hrtf, snakemake.output.hrir, snakemake.params.hrir)  # noqa: F821

@@ -10,15 +10,22 @@ configure_logging(snakemake)  # noqa: F821
 
 from amt_bridge.evaluation import compare_conditions, comparison_summary  # noqa: E402
 from amt_bridge.plots import save_error_bars, save_prediction_matrices  # noqa: E402
+from mesh2hrtf_io.frequency_sets import describe_set, frequencies_from_spec  # noqa: E402
 from ppm.atomic import write_text_atomic  # noqa: E402
 
 settings = snakemake.params.settings  # noqa: F821
 out = snakemake.output  # noqa: F821
+reference_frequencies = snakemake.params.reference_frequencies  # noqa: F821
 sensitivity, predictions = compare_conditions(snakemake.input.reference, {"ppm": snakemake.input.ppm},  # noqa: F821
-                                              settings["calibration_qe_percent"], settings["lateral_angles_deg"])
+                                              settings["calibration_qe_percent"], settings["lateral_angles_deg"],
+                                              reference_frequencies)
 save_error_bars(predictions, out.bars, title=f"{snakemake.wildcards.subject}: reference vs PPM")  # noqa: F821
 save_prediction_matrices(predictions["reference"], out.reference_matrix, title="reference")
 save_prediction_matrices(predictions["ppm"], out.ppm_matrix, title="PPM")
 summary = comparison_summary(snakemake.input.reference, settings["calibration_qe_percent"], sensitivity,  # noqa: F821
                              predictions)
+frequencies = frequencies_from_spec(snakemake.params.frequency_set)  # noqa: F821
+summary["frequency_set"] = {"spec": snakemake.params.frequency_set, "description": describe_set(frequencies),  # noqa: F821
+                            "frequencies_hz": frequencies.tolist(),
+                            "reference_rebuilt_at_set": reference_frequencies is not None}
 write_text_atomic(out.summary, json.dumps(summary, indent=2) + "\n")

@@ -102,7 +102,7 @@ def _rebuilt_from_sparse_set(spectra: np.ndarray, frequencies: np.ndarray, dc, s
     return irs, rate
 
 
-def resampled_at(hrirs: HrirSet, frequencies_hz) -> HrirSet:
+def resampled_at(hrirs: HrirSet, frequencies_hz, interpolant: str = "pchip") -> HrirSet:
     """The same set sampled at ``frequencies_hz`` (exact DFT) and rebuilt at its own rate and length, as HRTFs
     solved at that set are: compares a full reference like with like against solved conditions."""
     from mesh2hrtf_io.errors import Mesh2HrtfIoError  # noqa: PLC0415
@@ -111,7 +111,7 @@ def resampled_at(hrirs: HrirSet, frequencies_hz) -> HrirSet:
     frequencies = np.asarray(frequencies_hz, dtype=np.float64)
     try:
         irs = rebuild_hrirs(sample_spectra(hrirs.irs, hrirs.sampling_rate_hz, frequencies), frequencies,
-                            hrirs.sampling_rate_hz, hrirs.irs.shape[-1], 0.0, hrirs.source)
+                            hrirs.sampling_rate_hz, hrirs.irs.shape[-1], 0.0, hrirs.source, interpolant)
     except Mesh2HrtfIoError as exc:
         raise AmtBridgeError(str(exc)) from exc
     return dataclasses.replace(hrirs, irs=irs, source=f"{hrirs.source} at {frequencies.size} frequencies")

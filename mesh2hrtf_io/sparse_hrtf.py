@@ -19,7 +19,7 @@ physics); Mesh2HRTF's e^{-iωt} pressures are conjugated first. Steps, per respo
 from __future__ import annotations
 
 import numpy as np
-from scipy.interpolate import PchipInterpolator
+from scipy.interpolate import CubicSpline, PchipInterpolator
 
 from amt_bridge.dtf import minimum_phase_spectrum
 from amt_bridge.filterbank import freq_to_erb_number
@@ -56,11 +56,25 @@ def low_frequency_delay(spectra: np.ndarray, frequencies_hz: np.ndarray, band_hz
     return -(phase @ omega) / (omega @ omega)
 
 
-def _levels_on_grid(levels_db: np.ndarray, frequencies_hz: np.ndarray, grid_hz: np.ndarray) -> np.ndarray:
+INTERPOLANTS = ("pchip", "linear", "cubic")
+
+
+def _levels_on_grid(levels_db: np.ndarray, frequencies_hz: np.ndarray, grid_hz: np.ndarray,
+                    interpolant: str = "pchip") -> np.ndarray:
     x = freq_to_erb_number(frequencies_hz)
     inside = grid_hz <= frequencies_hz[-1]
     out = np.empty(levels_db.shape[:-1] + (grid_hz.size,))
-    out[..., inside] = PchipInterpolator(x, levels_db, axis=-1)(freq_to_erb_number(grid_hz[inside]))
+    x_inside = freq_to_erb_number(grid_hz[inside])
+    if interpolant == "pchip":
+        out[..., inside] = PchipInterpolator(x, levels_db, axis=-1)(x_inside)
+    elif interpolant == "cubic":
+        out[..., inside] = CubicSpline(x, levels_db, axis=-1)(x_inside)
+    elif interpolant == "linear":
+        flat = levels_db.reshape(-1, x.size)
+        out[..., inside] = np.stack([np.interp(x_inside, x, row) for row in flat]).reshape(
+            levels_db.shape[:-1] + (x_inside.size,))
+    else:
+        raise Mesh2HrtfIoError(f"interpolant must be one of {INTERPOLANTS}, got {interpolant!r}")
     above = ~inside
     if above.any():
         nyquist = grid_hz[-1]
@@ -70,11 +84,12 @@ def _levels_on_grid(levels_db: np.ndarray, frequencies_hz: np.ndarray, grid_hz: 
 
 
 def rebuild_hrirs(spectra: np.ndarray, frequencies_hz, sampling_rate_hz: float = 48000.0, n_samples: int = 320,
-                  delay_shift_s: float = 0.0, source: str = "HRTFs") -> np.ndarray:
+                  delay_shift_s: float = 0.0, source: str = "HRTFs", interpolant: str = "pchip") -> np.ndarray:
     """Impulse responses (..., n_samples) at ``sampling_rate_hz`` from spectra (..., K) solved at a sparse set.
 
     ``frequencies_hz`` must be increasing, unique, at most Nyquist and at least 8; 0 Hz may lead (its
-    value is then the DC level; otherwise 0 dB). See the module docstring for the method."""
+    value is then the DC level; otherwise 0 dB). See the module docstring for the method; ``interpolant``
+    'linear' or 'cubic' (over the same ERB-number axis) are there for comparison."""
     f = np.asarray(frequencies_hz, dtype=np.float64)
     spectra = np.asarray(spectra, dtype=np.complex128)
     if spectra.shape[-1] != f.size:
@@ -91,7 +106,7 @@ def rebuild_hrirs(spectra: np.ndarray, frequencies_hz, sampling_rate_hz: float =
              else np.zeros(spectra.shape[:-1] + (1,)))
     levels = np.concatenate([dc_db, 20 * np.log10(np.maximum(np.abs(values), 1e-5))], axis=-1)
     grid = np.arange(n_samples // 2 + 1) * sampling_rate_hz / n_samples
-    levels_grid = _levels_on_grid(levels, np.concatenate([[0.0], solved]), grid)
+    levels_grid = _levels_on_grid(levels, np.concatenate([[0.0], solved]), grid, interpolant)
 
     log_magnitude = levels_grid * (np.log(10) / 20)
     two_sided = np.concatenate([log_magnitude, log_magnitude[..., -2:0:-1]], axis=-1)

@@ -34,6 +34,22 @@ def test_dry_run_with_a_dataset_plans_one_template_per_subject(tmp_path, sonicom
         assert f"results/{subject}/align/summary.json" in text
 
 
+def test_dry_run_with_hrtfs_plans_one_numcalc_job_per_ear_and_frequency_of_the_set(tmp_path, sonicom):
+    """HRTFs on with the default frequency set (preset 'evaluation'): 40 NumCalc steps per ear and head."""
+    import yaml
+
+    work = _copy_workflow(tmp_path)
+    config = yaml.safe_load((work / "config" / "config.yaml").read_text())
+    config["data_root"], config["hrtf"]["enabled"] = str(sonicom), True
+    (work / "config" / "test_sets.yaml").write_text(yaml.safe_dump(config))
+    done = _run(["results/P039/hrtf/ppm/HRIR_SagittalPlanes.sofa", "-n", "--cores", "2", "--configfile",
+                 "config/test_sets.yaml"], work)
+    assert done.returncode == 0, done.stderr[-3000:]
+    text = done.stdout + done.stderr
+    for source in (1, 2):
+        assert f"steps/source_{source}/steps_40-40.json" in text and f"steps/source_{source}/steps_41-41.json" not in text
+
+
 def test_config_errors_stop_before_any_work(tmp_path):
     work = _copy_workflow(tmp_path)
     done = _run(["-n", "--cores", "1", "--config", f"data_root={tmp_path / 'nowhere'}"], work)
@@ -224,5 +240,8 @@ def test_localisation_rule_compares_ppm_and_reference_hrtfs(tmp_path, sonicom):
     summary = json.loads((work / target).read_text())
     assert summary["conditions"]["reference"]["qe_percent"] == pytest.approx(8.0, abs=0.01)
     assert summary["conditions"]["ppm"]["qe_percent"] > 15.0
+    # the default set is sparse: the dataset's full reference is sampled there and rebuilt, like with like
+    assert summary["frequency_set"]["reference_rebuilt_at_set"] is True
+    assert summary["frequency_set"]["description"].startswith("40 frequencies, 150 Hz to 24000 Hz")
     for name in ("qe_pe_bars.png", "reference_matrix.png", "ppm_matrix.png"):
         assert (work / "results/S1/localisation" / name).read_bytes()[:4] == b"\x89PNG"

@@ -41,9 +41,11 @@ def _export(args) -> dict:
     frequencies = _export_frequencies(args)
     layout = write_project(args.project, head.vertices, head.faces, ears, grids, frequencies,
                            source_type={"both": "Both ears", "left": "Left ear", "right": "Right ear"}[args.ears],
-                           title=args.head.stem, compute_hrirs=args.hrirs)
+                           title=args.head.stem, compute_hrirs=args.hrirs,
+                           numcalc_cluster_size=args.cluster_size if args.cluster_size != "auto" else "auto")
     return {"project": str(args.project), "elements": layout.n_object_elements, "ear_ranges": layout.ear_ranges,
-            "frequencies": len(frequencies), "grids": [g.name for g in grids]}
+            "frequencies": len(frequencies), "grids": [g.name for g in grids],
+            "numcalc_clusters": json.loads((args.project / "numcalc_clusters.json").read_text())}
 
 
 def _solve(args) -> dict:
@@ -69,6 +71,12 @@ def _cost(args) -> dict:
     return project_cost(args.project, args.solver, args.numcalc).as_dict()
 
 
+def _doctor(args) -> dict:
+    from .doctor import doctor  # noqa: PLC0415
+
+    return doctor(args.numcalc)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="m2h", description="Mesh2HRTF projects: export, solve, collect SOFA, cost")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -82,6 +90,8 @@ def main(argv: list[str] | None = None) -> int:
     export.add_argument("--preset", choices=sorted(presets()), default=None,
                         help="a named frequency set (mesh2hrtf_io/data/frequency_sets.yaml), e.g. evaluation")
     export.add_argument("--frequencies", type=float, nargs="*", default=None, help="an explicit list (Hz)")
+    export.add_argument("--cluster-size", type=lambda v: v if v == "auto" else float(v), default="auto",
+                        help="NumCalc level-0 cluster size in m (0: NumCalc's default; auto: from the mesh)")
     export.add_argument("--polar-step", type=float, default=2.5, help="sagittal-plane grid step (deg)")
     export.add_argument("--grid-sofa", type=Path, nargs="*", default=[], help="extra grids from SOFA source positions")
     export.add_argument("--hrirs", action="store_true", help="ask for HRIR SOFA files too")
@@ -97,9 +107,11 @@ def main(argv: list[str] | None = None) -> int:
     collect.add_argument("--output", type=Path, default=None)
     collect.add_argument("--hrir-rate", type=float, default=48000.0, help="rate of HRIRs rebuilt from a sparse set (Hz)")
     collect.add_argument("--hrir-samples", type=int, default=320, help="taps of HRIRs rebuilt from a sparse set")
+    check = sub.add_parser("doctor", help="say which solver is usable here, and why not")
+    check.add_argument("--numcalc", default=None, help="NumCalc binary to check (default: PATH, then .venv/bin)")
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(message)s")
-    handlers = {"export": _export, "solve": _solve, "collect": _collect, "cost": _cost}
+    handlers = {"export": _export, "solve": _solve, "collect": _collect, "cost": _cost, "doctor": _doctor}
     try:
         result = handlers[args.command](args)
     except (Mesh2HrtfIoError, PpmError) as exc:

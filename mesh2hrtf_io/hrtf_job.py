@@ -40,7 +40,7 @@ def export_head_project(head_path: str | os.PathLike, project: str | os.PathLike
     frequencies = frequencies_from_spec(settings["frequencies_hz"])
     layout = write_project(project, head.vertices, head.faces, ears, [sagittal_grid(polar_step_deg=settings["polar_step_deg"])],
                            frequencies, source_type=SOURCE_TYPES[settings["ears"]], title=head_path.parent.name,
-                           compute_hrirs=True)
+                           compute_hrirs=True, numcalc_cluster_size=settings.get("numcalc_cluster_size", "auto"))
     log.info("exported %s: %d elements, ears %s, %s", project, layout.n_object_elements, layout.ear_ranges,
              describe_set(frequencies))
 

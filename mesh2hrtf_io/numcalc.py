@@ -15,6 +15,7 @@ import logging
 import os
 import shutil
 import subprocess
+import sys
 import time
 from pathlib import Path
 
@@ -41,8 +42,19 @@ class StepEstimate:
     memory_gb: float
 
 
+INSTALL_HINT = ("build it from a Mesh2HRTF 1.2.x checkout with `bash scripts/install_numcalc.sh MESH2HRTF_DIR` "
+                "(installs .venv/bin/NumCalc) or set hrtf.numcalc to its path, or use the embedded solver "
+                "(hrtf.solver: embedded)")
+
+
+def venv_numcalc() -> Path:
+    """Where scripts/install_numcalc.sh puts NumCalc: beside this environment's Python."""
+    return Path(sys.executable).parent / "NumCalc"
+
+
 def find_numcalc(configured: str | os.PathLike | None = None) -> Path:
-    """The NumCalc binary: the configured path, else ``NumCalc`` on PATH."""
+    """The NumCalc binary: the configured path, else ``NumCalc`` on PATH, else the one installed into this
+    environment by scripts/install_numcalc.sh."""
     if configured:
         path = Path(configured).expanduser()
         if path.is_file() and os.access(path, os.X_OK):
@@ -50,13 +62,14 @@ def find_numcalc(configured: str | os.PathLike | None = None) -> Path:
         found = shutil.which(str(configured))
         if found:
             return Path(found)
-        raise NumCalcError(f"NumCalc binary {configured!r} not found or not executable: fix solve.numcalc in the "
-                           "config, or use the embedded solver (solve.solver: embedded)")
+        raise NumCalcError(f"NumCalc binary {configured!r} (config hrtf.numcalc) not found or not executable: fix "
+                           f"the path, or {INSTALL_HINT}")
     found = shutil.which("NumCalc")
-    if not found:
-        raise NumCalcError("NumCalc is not on PATH: build it from Mesh2HRTF (mesh2hrtf/NumCalc/src, make) and set "
-                           "solve.numcalc, or use the embedded solver (solve.solver: embedded)")
-    return Path(found)
+    if found:
+        return Path(found)
+    if venv_numcalc().is_file() and os.access(venv_numcalc(), os.X_OK):
+        return venv_numcalc()
+    raise NumCalcError(f"NumCalc is not on PATH nor in {venv_numcalc().parent}: {INSTALL_HINT}")
 
 
 def estimate_memory(numcalc: Path, source_folder: str | os.PathLike) -> list[StepEstimate]:

@@ -20,6 +20,7 @@ import trimesh
 from ppm.atomic import atomic_directory
 
 from .checks import check_mesh
+from .clusters import planned_cluster_tree
 from .constants import (DENSITY_KG_M3, EAR_VELOCITY_M_S, GRID_START_ID, MESH2HRTF_VERSION, SOURCE_TO_ROOT,
                         SPEED_OF_SOUND_M_S)
 from .errors import Mesh2HrtfIoError
@@ -70,8 +71,9 @@ def _check_frequencies(frequencies_hz) -> np.ndarray:
 
 def nc_inp_text(title: str, frequencies_hz: np.ndarray, n_elements: int, n_nodes: int, mesh_paths: list[str],
                 ear_range: tuple[int, int], ear_label: str, speed_of_sound_m_s: float, density_kg_m3: float,
-                method: int = 4) -> str:
-    """The NC.inp of one reciprocal ear source (Mesh2HRTF 1.2.4 layout)."""
+                method: int = 4, cluster_size_m: float = 0.0) -> str:
+    """The NC.inp of one reciprocal ear source (Mesh2HRTF 1.2.4 layout); ``cluster_size_m`` is the level-0
+    cluster size of the multilevel FMM (Main Parameters II, 4th value; 0 = NumCalc derives it)."""
     lines = ["##-------------------------------------------", "## NumCalc input written by ppm-hrtf (mesh2hrtf_io)",
              "##-------------------------------------------", f"Mesh2HRTF {MESH2HRTF_VERSION}", "##", title, "##",
              "## Controlparameter I", "0 0 0 0 7 0", "##", "## Controlparameter II",
@@ -79,7 +81,7 @@ def nc_inp_text(title: str, frequencies_hz: np.ndarray, n_elements: int, n_nodes
              f"0 {len(frequencies_hz) + 1}", "0.000000 0.000000e+00 0.0"]
     lines += [f"{(i + 1) * 1e-6:.6f} {f / 1e4:.6f}e+04 0.0" for i, f in enumerate(frequencies_hz)]
     lines += ["##", "## 1. Main Parameters I", f"2 {n_elements} {n_nodes} 0 0 2 1 {method} 0",
-              "##", "## 2. Main Parameters II", "0 0 0 0.0000e+00 0 0 0",
+              "##", "## 2. Main Parameters II", f"0 0 0 {cluster_size_m:.4e} 0 0 0",
               "##", "## 3. Main Parameters III", "0 0 0 0",
               "##", "## 4. Main Parameters IV",
               f"{speed_of_sound_m_s:g} {density_kg_m3:.4e} 1.0 0.0e+00 0.0 e+00 0.0e+00 0.0e+00", "##", "NODES"]
@@ -96,7 +98,8 @@ def write_project(folder: str | os.PathLike, vertices_mm: np.ndarray, faces: np.
                   ear_elements: dict[str, np.ndarray], grids: list[EvaluationGrid], frequencies_hz,
                   *, source_type: str = "Both ears", title: str = "ppm-hrtf head",
                   speed_of_sound_m_s: float = SPEED_OF_SOUND_M_S, density_kg_m3: float = DENSITY_KG_M3,
-                  reference: bool = True, compute_hrirs: bool = False) -> ProjectLayout:
+                  reference: bool = True, compute_hrirs: bool = False,
+                  numcalc_cluster_size: float | str = "auto") -> ProjectLayout:
     """Validate a head mesh and write a complete Mesh2HRTF 1.2.4 project folder.
 
     Parameters
@@ -115,6 +118,10 @@ def write_project(folder: str | os.PathLike, vertices_mm: np.ndarray, faces: np.
         Strictly increasing frequencies above 0 Hz.
     source_type : {'Both ears', 'Left ear', 'Right ear'}
         Which ears become reciprocal sources.
+    numcalc_cluster_size : 'auto' or float
+        Level-0 cluster size of NumCalc's multilevel FMM in metres (0: NumCalc's default); 'auto' chooses
+        it from the mesh (:func:`mesh2hrtf_io.clusters.chosen_cluster_size_m`). The tree NumCalc will build
+        is written to ``numcalc_clusters.json``.
 
     Raises
     ------
@@ -154,6 +161,7 @@ def write_project(folder: str | os.PathLike, vertices_mm: np.ndarray, faces: np.
         start += len(chosen[ear])
 
     mesh = trimesh.Trimesh(vertices_mm, faces, process=False)
+    tree = planned_cluster_tree(mm_to_m(vertices_mm), faces, numcalc_cluster_size, source=f"head mesh for {folder}")
     grids = sorted(grids, key=lambda g: g.name)
     grid_start = GRID_START_ID if GRID_START_ID > len(vertices_mm) else int(np.ceil((len(vertices_mm) + 1) / 1e5) * 1e5)
     n_nodes = len(vertices_mm) + sum(len(g.points_m) for g in grids)
@@ -185,7 +193,7 @@ def write_project(folder: str | os.PathLike, vertices_mm: np.ndarray, faces: np.
             source_dir.mkdir(parents=True)
             (source_dir / "NC.inp").write_text(
                 nc_inp_text(title, frequencies, n_elements, n_nodes, mesh_paths, ear_ranges[ear], labels[ear],
-                            speed_of_sound_m_s, density_kg_m3), newline="\n")
+                            speed_of_sound_m_s, density_kg_m3, cluster_size_m=tree.written_m), newline="\n")
             ear_vertices = vertices_mm[np.unique(faces[chosen[ear]])]
             centres.append(mm_to_m((ear_vertices.min(axis=0) + ear_vertices.max(axis=0)) / 2).tolist())
             areas.append(float(mesh.area_faces[chosen[ear]].sum() / 1e6))
@@ -203,6 +211,7 @@ def write_project(folder: str | os.PathLike, vertices_mm: np.ndarray, faces: np.
                           for e in ears},
         }
         (tmp / "parameters.json").write_text(json.dumps(parameters, indent=4) + "\n", newline="\n")
+        (tmp / "numcalc_clusters.json").write_text(json.dumps(tree.as_dict(), indent=2) + "\n", newline="\n")
     return ProjectLayout(ear_ranges, len(vertices_mm), len(faces), n_nodes, n_elements, sources,
                          tuple(frequencies.tolist()))
 

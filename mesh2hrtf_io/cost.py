@@ -1,9 +1,11 @@
 """Cost of solving a project: elements, frequencies, predicted CPU-hours and peak memory.
 
 Embedded solver: the dense Burton–Miller model of :func:`mesh2hrtf_io.bem.estimate_cost`.
-NumCalc: memory per step from ``NumCalc -estimate_ram`` when a binary is available; time from a
-multilevel-FMM model, t = a · NE · (1 + (f / f_ref)^2) seconds per step and ear, whose constants were
-measured on this machine (benchmarks/solve_cost.py prints measured against predicted).
+NumCalc: with a NumCalc binary, memory per step from ``NumCalc -estimate_ram`` and time from the model of
+:mod:`mesh2hrtf_io.numcalc_cost` (near-field pairs of the cluster tree NumCalc will build, plus that
+memory; benchmarks/numcalc_graded.py measures it against real steps). Without a binary, a rough rule of
+thumb t = a · NE · (1 + (f / f_ref)^2) per step and ear, measured on Mesh2HRTF's uniform example head
+(graded heads cost several times more per element; the result says which was used).
 """
 from __future__ import annotations
 
@@ -35,6 +37,7 @@ class ProjectCost:
     cpu_hours: float
     peak_memory_gb: float
     memory_source: str
+    time_source: str = ""
 
     def as_dict(self) -> dict:
         return dataclasses.asdict(self)
@@ -59,12 +62,27 @@ def project_cost(folder: str | os.PathLike, solver: str = "embedded", numcalc: s
                            round(seconds / 3600, 3), cost.memory_gb_per_frequency, "dense operator model")
     if solver != "numcalc":
         raise ValueError(f"solver must be 'embedded' or 'numcalc', got {solver!r}")
-    seconds = sum(numcalc_seconds(n_elements, f) for f in frequencies) * n_sources
-    memory, source = float("nan"), "unknown (no NumCalc binary to run -estimate_ram)"
-    if numcalc:
-        from .numcalc import estimate_memory, find_numcalc  # noqa: PLC0415
+    from .numcalc import NumCalcError, estimate_memory, find_numcalc  # noqa: PLC0415
 
-        estimates = estimate_memory(find_numcalc(numcalc), project.sources[0].folder)
-        memory, source = max(e.memory_gb for e in estimates), "NumCalc -estimate_ram"
-    return ProjectCost(n_elements, n_vertices, n_points, n_sources, len(frequencies), solver,
-                       round(seconds / 3600, 3), round(memory, 3) if np.isfinite(memory) else memory, source)
+    try:
+        binary = find_numcalc(numcalc)
+    except NumCalcError:
+        if numcalc:
+            raise
+        binary = None
+    if binary is None:
+        seconds = sum(numcalc_seconds(n_elements, f) for f in frequencies) * n_sources
+        return ProjectCost(n_elements, n_vertices, n_points, n_sources, len(frequencies), solver,
+                           round(seconds / 3600, 3), float("nan"), "unknown (no NumCalc binary to run -estimate_ram)",
+                           "element-count rule of thumb (no NumCalc binary; graded heads cost several times more)")
+    from .numcalc_cost import predict_steps, tree_of_project  # noqa: PLC0415
+
+    source_folder = project.sources[0].folder
+    memory = [e.memory_gb for e in estimate_memory(binary, source_folder)]
+    tree = tree_of_project(project.vertices_m, project.faces, source_folder / "NC.inp")
+    steps = predict_steps(project.vertices_m, project.faces, tree, frequencies, memory)
+    seconds = sum(step.seconds for step in steps) * n_sources
+    return ProjectCost(n_elements, n_vertices, n_points, n_sources, len(frequencies), solver, round(seconds / 3600, 3),
+                       round(max(memory), 3), "NumCalc -estimate_ram",
+                       f"near-field pairs ({steps[0].near_pairs_million} M, {tree.levels} levels) and memory "
+                       "(mesh2hrtf_io.numcalc_cost)")

@@ -84,8 +84,11 @@ def is_linear_grid(frequencies_hz) -> bool:
     return bool(f.size >= 2 and f[0] > 0 and np.allclose(f, f[0] * np.arange(1, f.size + 1), rtol=0, atol=1e-6 * f[0]))
 
 
-def frequencies_from_spec(spec: dict, source: str = "config hrtf.frequencies_hz") -> np.ndarray:
-    """The frequencies (Hz, increasing, rounded to NumCalc's 0.01 Hz) of a set given as in frequency_sets.yaml."""
+def frequencies_from_spec(spec: dict | str, source: str = "config hrtf.frequencies_hz") -> np.ndarray:
+    """The frequencies (Hz, increasing, rounded to NumCalc's 0.01 Hz) of a set given as in frequency_sets.yaml,
+    or of the preset named by a string."""
+    if isinstance(spec, str):
+        spec = {"preset": spec}
     if not isinstance(spec, dict):
         raise Mesh2HrtfIoError(f"{source}: give a mapping ({{min, max, step}}, {{preset: NAME}}, {{scale: ..}} or "
                                f"{{list: [..]}}), got {spec!r}")

@@ -114,20 +114,35 @@ def solved_steps(wildcards):
     return [f"{base}/source_{s}/steps_{a}-{b}.json" for s in hrtf_sources() for a, b in ranges]
 
 
-def numcalc_step_mem_mb(wildcards, input, attempt):
-    """Memory of a NumCalc job (its largest step) from `NumCalc -estimate_ram`, +50 % per retry."""
-    from mesh2hrtf_io.numcalc import NumCalcError, estimate_memory, find_numcalc
+def _numcalc_job_costs(wildcards, input):
+    """Predicted costs of the steps of one NumCalc job (mesh2hrtf_io.numcalc_cost), or None before the export
+    (dry run) or without a NumCalc binary."""
+    from mesh2hrtf_io.numcalc import NumCalcError, find_numcalc
+    from mesh2hrtf_io.numcalc_cost import project_step_costs
 
-    source = Path(input.project) / "NumCalc" / f"source_{wildcards.source}"
-    if not (source / "NC.inp").is_file():  # not exported yet (dry run): a placeholder
-        return 2048
+    if not (Path(input.project) / "parameters.json").is_file():
+        return None
     try:
-        estimates = estimate_memory(find_numcalc(config["hrtf"]["numcalc"] or None), source)
-        steps = range(int(wildcards.first), int(wildcards.last) + 1)
-        gigabytes = max(e.memory_gb for e in estimates if e.step in steps)
+        costs = project_step_costs(input.project, find_numcalc(config["hrtf"]["numcalc"] or None))
     except (NumCalcError, ValueError, OSError):
-        gigabytes = 2.0
+        return None
+    return costs[int(wildcards.first) - 1 : int(wildcards.last)]
+
+
+def numcalc_step_mem_mb(wildcards, input, attempt):
+    """Memory of a NumCalc job (its largest step) from `NumCalc -estimate_ram`, +20 %, +50 % per retry."""
+    costs = _numcalc_job_costs(wildcards, input)
+    gigabytes = max(c.memory_gb for c in costs) if costs else 2.0
     return int(1024 * max(gigabytes, 0.25) * 1.2 * (1 + 0.5 * (attempt - 1)))
+
+
+def numcalc_step_runtime_min(wildcards, input, attempt):
+    """Wall-clock limit of a NumCalc job (minutes): its predicted steps x 2 (+50 % per retry), at least 10;
+    config hrtf.step_runtime_min per step when no prediction can be made."""
+    costs = _numcalc_job_costs(wildcards, input)
+    if not costs:
+        return int(config["hrtf"]["step_runtime_min"] * (int(wildcards.last) - int(wildcards.first) + 1))
+    return max(10, int(round(2 * sum(c.seconds for c in costs) / 60 * (1 + 0.5 * (attempt - 1)))))
 
 
 def embedded_mem_mb(wildcards, input):

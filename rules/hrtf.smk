@@ -38,7 +38,7 @@ rule solve_numcalc_step:
     threads: 1
     resources:
         mem_mb=numcalc_step_mem_mb,
-        runtime=lambda wc: config["hrtf"]["step_runtime_min"] * (int(wc.last) - int(wc.first) + 1),
+        runtime=numcalc_step_runtime_min,
     script:
         "../workflow/scripts/solve_numcalc_step.py"
 

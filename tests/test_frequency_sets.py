@@ -44,6 +44,7 @@ def test_the_evaluation_preset_is_40_frequencies_to_24_khz():
     assert 800 < step_16k < 1000
     assert "40 frequencies, 150 Hz to 24000 Hz, sparse set" in describe_set(EVALUATION)
     assert is_linear_grid(frequencies_from_spec({"preset": "sonicom_linear"}))
+    np.testing.assert_array_equal(frequencies_from_spec("evaluation"), EVALUATION)  # a name is a preset
     assert set(presets()) >= {"evaluation", "erb_half", "sonicom_linear"}
 
 

@@ -140,13 +140,29 @@ def test_embedded_solver_solves_a_project_and_resumes(tmp_path, caplog):
     assert solve_project_embedded(tmp_path / "p")["steps_solved"] == 1
 
 
-def test_cost_estimate_and_cli(tmp_path, capsys):
+def test_cost_estimate_and_cli(tmp_path, capsys, monkeypatch):
     _sphere_project(tmp_path / "p")
     cost = project_cost(tmp_path / "p", "embedded")
     assert cost.n_sources == 2 and cost.n_frequencies == len(FREQUENCIES) and cost.n_elements == 320
     assert 0 < cost.cpu_hours < 1 and 0 < cost.peak_memory_gb < 1
+    monkeypatch.setenv("PATH", str(tmp_path / "empty"))
+    monkeypatch.setattr("mesh2hrtf_io.numcalc.venv_numcalc", lambda: tmp_path / "nowhere" / "NumCalc")
     numcalc_cost = project_cost(tmp_path / "p", "numcalc")
     assert numcalc_cost.cpu_hours > 0 and np.isnan(numcalc_cost.peak_memory_gb)
+    assert "rule of thumb" in numcalc_cost.time_source
+    # with NumCalc (a stand-in answering -estimate_ram with 0.5 GB per step): near-field pairs + memory
+    fake = tmp_path / "NumCalc"
+    fake.write_text("#!/bin/sh\nfor k in 1 2 3 4 5 6 7 8; do echo \"$k $((k * 250)) 0.5\"; done > Memory.txt\n")
+    fake.chmod(0o755)
+    from mesh2hrtf_io.numcalc_cost import near_field_pairs, step_seconds, tree_of_project
+
+    with_numcalc = project_cost(tmp_path / "p", "numcalc", str(fake))
+    project = read_project(tmp_path / "p")
+    tree = tree_of_project(project.vertices_m, project.faces, project.sources[0].folder / "NC.inp")
+    pairs = near_field_pairs(project.vertices_m, project.faces, tree.finest_m)
+    assert 320 < pairs <= 320**2
+    assert with_numcalc.memory_source == "NumCalc -estimate_ram" and with_numcalc.peak_memory_gb == 0.5
+    assert with_numcalc.cpu_hours == pytest.approx(round(2 * 8 * step_seconds(pairs, 0.5) / 3600, 3), abs=1e-3)
     assert m2h_main(["cost", str(tmp_path / "p")]) == 0
     assert json.loads(capsys.readouterr().out)["n_frequencies"] == len(FREQUENCIES)
     head = trimesh.creation.icosphere(subdivisions=2, radius=RADIUS_MM)

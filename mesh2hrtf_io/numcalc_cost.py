@@ -10,7 +10,10 @@ nonzeros within 7 % on a stitched head with 2 and 3 levels. (ii) follows from ``
 
     seconds = a · near_pairs[millions] + b · memory_gb
 
-with a and b fitted to steps measured on this 2-core machine (``benchmarks/numcalc_graded.py``).
+with a and b fitted to steps measured on this 2-core machine (``benchmarks/numcalc_graded.py``: P039's
+head with the PPM stitched in, with NumCalc's default tree and with ours, and P039's own graded head, at
+1, 8 and 16 kHz; every step within 18 % of its prediction). The same step measured at different times
+here varies by up to 25 % (e.g. 128 and 167 s), which bounds what any model can promise.
 """
 from __future__ import annotations
 
@@ -25,8 +28,8 @@ from scipy.spatial import cKDTree
 from .clusters import ClusterTree, cluster_tree, mean_element_length_m
 
 NEAR_FIELD_REACH = 2.0          # near-field pairs: centres within this many finest cluster sizes
-SECONDS_PER_MILLION_NEAR_PAIRS = 1.24   # fitted, see module docstring
-SECONDS_PER_GB = 33.0                    # fitted, see module docstring
+SECONDS_PER_MILLION_NEAR_PAIRS = 1.363  # fitted (least relative error) to 9 steps, see module docstring
+SECONDS_PER_GB = 41.47                  # fitted with it
 
 
 @dataclasses.dataclass(frozen=True)

@@ -53,6 +53,49 @@ def _check_pinna(pinna: trimesh.Trimesh, source: str) -> np.ndarray:
     return loops[0]
 
 
+def _covered_by_pinna(head: trimesh.Trimesh, pinna: trimesh.Trimesh, rim: np.ndarray, gap_mm: float,
+                      reach_mm: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Head vertices under the pinna: near it, on its side of the head, and inside its rim seen along the ear
+    axis, the rim grown by ``gap_mm`` (shrunk for a negative gap). Returns (mask, rim centre, (3, 2) basis of
+    the rim's plane)."""
+    rim_points = np.asarray(pinna.vertices)[rim]
+    centre = rim_points.mean(axis=0)
+    _, _, axes = np.linalg.svd(rim_points - centre)
+    normal = axes[2] if axes[2][1] >= 0 else -axes[2]  # the ear's outward axis, towards +y
+    plane = np.stack([axes[0], axes[1]], axis=1)
+    points = np.asarray(head.vertices)
+    near_pinna = cKDTree(pinna.vertices).query(points, distance_upper_bound=reach_mm)[0] < reach_mm
+    lateral = (points - centre) @ normal > -reach_mm
+    rim_2d = (rim_points - centre) @ plane
+    points_2d = (points - centre) @ plane
+    inside = PolygonPath(rim_2d).contains_points(points_2d)
+    to_rim = cKDTree(rim_2d).query(points_2d)[0]
+    outline = (inside | (to_rim < gap_mm)) if gap_mm >= 0 else (inside & (to_rim >= -gap_mm))
+    return near_pinna & lateral & outline, centre, plane
+
+
+def own_pinna_region(head: trimesh.Trimesh, pinna: trimesh.Trimesh, *, inset_mm: float = 1.0,
+                     reach_mm: float = 25.0, pinna_source: str = "pinna mesh") -> trimesh.Trimesh:
+    """The head's own left pinna under an aligned pinna ``pinna``: the head faces inside its rim (by at least
+    ``inset_mm``), as one open surface with one boundary, in mm. Stitched back with :func:`replace_pinna`
+    and remeshed like a PPM pinna, it is the control that shows what the stitch and remesh path alone
+    changes."""
+    rim = _check_pinna(pinna, pinna_source)
+    covered, _, _ = _covered_by_pinna(head, pinna, rim, -inset_mm, reach_mm)
+    inside = covered[head.faces].all(axis=1)
+    region = trimesh.Trimesh(head.vertices, head.faces[inside], process=False)
+    if len(region.faces) == 0:
+        raise StitchError(f"{pinna_source}: no head face lies inside the pinna's rim; is it placed at this head's left ear?")
+    components = trimesh.graph.connected_components(region.face_adjacency, nodes=np.arange(len(region.faces)))
+    region = trimesh.Trimesh(head.vertices, region.faces[np.sort(max(components, key=len))], process=False)
+    region.remove_unreferenced_vertices()
+    loops = boundary_loops(region)
+    if len(loops) != 1:
+        raise StitchError(f"{pinna_source}: the head's own pinna region has {len(loops)} boundary loops instead of one "
+                          "(the head is not a single surface under the pinna's rim)")
+    return region
+
+
 def replace_pinna(head: trimesh.Trimesh, pinna: trimesh.Trimesh, *, gap_mm: float = 1.5, reach_mm: float = 25.0,
                   head_source: str = "head mesh", pinna_source: str = "pinna mesh") -> StitchedHead:
     """Cut the head's left pinna region and stitch ``pinna`` in (both in mm, same frame)."""
@@ -68,22 +111,7 @@ def replace_pinna(head: trimesh.Trimesh, pinna: trimesh.Trimesh, *, gap_mm: floa
                           f"the skin of {head_source}; it must rest on the head (align the pinna to this head's "
                           "left ear, in the same frame)")
 
-    centre = rim_points.mean(axis=0)
-    _, _, axes = np.linalg.svd(rim_points - centre)
-    normal = axes[2] if axes[2][1] >= 0 else -axes[2]  # the ear's outward axis, towards +y
-    plane = np.stack([axes[0], axes[1]], axis=1)
-
-    # a head vertex is covered when it lies near the pinna, on its side of the head, and inside the rim
-    # (grown by gap_mm) seen along the ear axis; a face is cut when any of its vertices is covered, so
-    # every vertex left on the hole is at least gap_mm from the rim
-    points = np.asarray(head.vertices)
-    near_pinna = cKDTree(pinna.vertices).query(points, distance_upper_bound=reach_mm)[0] < reach_mm
-    lateral = (points - centre) @ normal > -reach_mm
-    rim_2d = (rim_points - centre) @ plane
-    points_2d = (points - centre) @ plane
-    inside = PolygonPath(rim_2d).contains_points(points_2d)
-    close_to_rim = cKDTree(rim_2d).query(points_2d)[0] < gap_mm
-    covered = near_pinna & lateral & (inside | close_to_rim)
+    covered, centre, plane = _covered_by_pinna(head, pinna, rim, gap_mm, reach_mm)
     cut = covered[head.faces].any(axis=1)
     if not cut.any():
         raise StitchError(f"{pinna_source}: no head face lies under the pinna; is it placed at this head's left ear?")

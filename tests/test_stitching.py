@@ -109,3 +109,23 @@ def test_bad_input_is_named_and_nothing_is_written(tmp_path, p143_head, p143_ppm
         stitch_files(sonicom / "P143" / "head_graded_left.ply", tmp_path / "empty.ply", tmp_path / "out.ply",
                      tmp_path / "out.json")
     assert not (tmp_path / "out.ply").exists() and not (tmp_path / "out.json").exists()
+
+
+def test_the_heads_own_pinna_under_a_fitted_ppm_goes_back_through_the_same_path(p143_head, p143_ppm_pinna):
+    """The own_pinna control: the head faces inside the fitted PPM's rim, cut out and stitched back, give a
+    closed head that lies on the original surface outside the seam."""
+    from stitching.replace_pinna import own_pinna_region
+
+    own = own_pinna_region(p143_head, p143_ppm_pinna)
+    assert 3000 < len(own.faces) < 20000 and own.vertices[:, 1].min() > 40.0
+    stitched = replace_pinna(p143_head, own)
+    mesh = stitched.mesh
+    assert mesh.is_watertight and mesh.is_winding_consistent and mesh.volume > 0
+    outside_seam = trimesh.Trimesh(mesh.vertices, mesh.faces[stitched.origin != 2], process=False)
+    samples = trimesh.sample.sample_surface_even(outside_seam, 20000, seed=5)[0]
+    assert trimesh.proximity.closest_point(p143_head, samples)[1].max() < 0.1
+    # the pinna itself (concha, helix) is the original: every own-region vertex is a head vertex
+    assert trimesh.proximity.closest_point(p143_head, own.vertices)[1].max() < 1e-6
+    with pytest.raises(StitchError, match="no head face lies inside"):
+        own_pinna_region(p143_head, p143_ppm_pinna.copy().apply_translation([0, -140.0, 0]).apply_transform(
+            np.diag([1.0, -1.0, 1.0, 1.0])).apply_translation([0, 150.0, 200.0]))

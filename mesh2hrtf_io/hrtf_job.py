@@ -46,26 +46,51 @@ def export_head_project(head_path: str | os.PathLike, project: str | os.PathLike
 
 
 def solve_numcalc_steps(project: str | os.PathLike, source: int, steps, status_path: str | os.PathLike,
-                        numcalc: str | None, max_iterations: int) -> None:
-    """Run NumCalc for ``steps`` (1-based; complete ones are skipped) and write their status JSON."""
+                        numcalc: str | None, max_iterations: int, store: str | os.PathLike | None = None) -> None:
+    """Run NumCalc for ``steps`` (1-based; complete ones are skipped) and write their status JSON. With a
+    ``store`` folder (:mod:`mesh2hrtf_io.step_store`), steps stored there for this very project are restored
+    instead of solved, and every newly solved step is copied there."""
     from .numcalc import find_numcalc, run_step  # noqa: PLC0415
+    from .step_store import project_fingerprint, restore_step, save_step  # noqa: PLC0415
 
     folder = Path(project) / "NumCalc" / f"source_{source}"
     points = len(read_project(project).evaluation_points_m)
-    binary = find_numcalc(numcalc)
-    statuses = []
+    fingerprint = project_fingerprint(project, source) if store else None
+    statuses, binary = [], None
     progress = Progress(len(steps), f"NumCalc source_{source}", log)
     for step in steps:
-        statuses.append(run_step(binary, folder, step, points, max_iterations))
+        if store and restore_step(project, source, step, store, fingerprint):
+            statuses.append({"step": step, "solver": "NumCalc", "converged": True, "restored_from": str(store)})
+        else:
+            binary = binary or find_numcalc(numcalc)
+            statuses.append(run_step(binary, folder, step, points, max_iterations))
+            if store:
+                save_step(project, source, step, store, fingerprint)
         progress.step(f"step {step}")
     write_text_atomic(status_path, json.dumps({"steps": statuses}, indent=2) + "\n")
 
 
-def solve_embedded(project: str | os.PathLike, status_path: str | os.PathLike) -> None:
-    """Solve every missing step with the embedded solver and write a summary JSON."""
+def solve_embedded(project: str | os.PathLike, status_path: str | os.PathLike,
+                   store: str | os.PathLike | None = None) -> None:
+    """Solve every missing step with the embedded solver and write a summary JSON; with a ``store``, stored
+    steps of this project are restored first and solved ones copied there."""
     from .embedded import solve_project_embedded  # noqa: PLC0415
+    from .step_store import project_fingerprint, restore_step, save_step  # noqa: PLC0415
 
+    sources = range(1, len(read_project(project).sources) + 1)
+    n_steps = len(read_project(project).frequencies_hz)
+    restored = 0
+    if store:
+        for source in sources:
+            fingerprint = project_fingerprint(project, source)
+            restored += sum(restore_step(project, source, k, store, fingerprint) for k in range(1, n_steps + 1))
     summary = solve_project_embedded(project)
+    summary["steps_restored"] = restored
+    if store:
+        for source in sources:
+            fingerprint = project_fingerprint(project, source)
+            for step in range(1, n_steps + 1):
+                save_step(project, source, step, store, fingerprint)
     write_text_atomic(status_path, json.dumps(summary, indent=2) + "\n")
 
 

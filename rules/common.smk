@@ -99,6 +99,12 @@ def hrtf_head_mesh(wildcards):
     raise ValueError(f"unknown HRTF variant {wildcards.variant!r}; known: {HRTF_VARIANTS}")
 
 
+def step_store(wildcards):
+    """Where solved steps of this subject and variant are kept (config hrtf.step_store), or None."""
+    folder = config["hrtf"]["step_store"]
+    return str(Path(folder) / wildcards.subject / wildcards.variant) if folder else None
+
+
 def hrtf_sources():
     """Source folders of a project: source_1 (left ear) and, for both ears, source_2 (right ear)."""
     return ["1", "2"] if config["hrtf"]["ears"] == "both" else ["1"]

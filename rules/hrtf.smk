@@ -35,6 +35,7 @@ rule solve_numcalc_step:
     params:
         numcalc=lambda wc: config["hrtf"]["numcalc"],
         max_iterations=lambda wc: config["hrtf"]["max_iterations"],
+        store=step_store,
     threads: 1
     resources:
         mem_mb=numcalc_step_mem_mb,
@@ -52,6 +53,8 @@ rule solve_embedded:
         "logs/hrtf/solve_embedded/{subject}_{variant}.log",
     benchmark:
         "benchmarks/timings/hrtf/solve_embedded/{subject}_{variant}.tsv"
+    params:
+        store=step_store,
     threads: 2
     resources:
         mem_mb=embedded_mem_mb,

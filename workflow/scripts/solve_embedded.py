@@ -9,4 +9,4 @@ configure_logging(snakemake)  # noqa: F821
 
 from mesh2hrtf_io.hrtf_job import solve_embedded  # noqa: E402
 
-solve_embedded(snakemake.input.project, snakemake.output.status)  # noqa: F821
+solve_embedded(snakemake.input.project, snakemake.output.status, snakemake.params.store)  # noqa: F821

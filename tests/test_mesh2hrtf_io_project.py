@@ -37,7 +37,8 @@ def test_sphere_project_has_the_exact_layout_and_counts(tmp_path, sphere, sonico
     assert files == ["EvaluationGrids/SONICOM/Elements.txt", "EvaluationGrids/SONICOM/Nodes.txt",
                      "EvaluationGrids/SagittalPlanes/Elements.txt", "EvaluationGrids/SagittalPlanes/Nodes.txt",
                      "NumCalc/source_1/NC.inp", "NumCalc/source_2/NC.inp",
-                     "ObjectMeshes/Reference/Elements.txt", "ObjectMeshes/Reference/Nodes.txt", "parameters.json"]
+                     "ObjectMeshes/Reference/Elements.txt", "ObjectMeshes/Reference/Nodes.txt", "numcalc_clusters.json",
+                     "parameters.json"]
     assert not list(tmp_path.glob("*.partial"))
 
     n_nodes, node_lines = read_counts(folder / "ObjectMeshes/Reference/Nodes.txt")

@@ -178,3 +178,19 @@ def test_fits_of_real_ears_are_free_of_folds(model, sonicom):
     result = align(model, target)
     assert result.folded_faces == 0 and len(model.folded_faces(result.vertices_mm)) == 0
     assert not [w for w in result.warnings if "folded" in w]
+
+
+def test_the_default_ppm_control_is_the_template_placed_by_the_global_pose_only(model, sonicom):
+    """The evaluation's default_ppm condition (what the alignment buys): no stages after the global pose, so
+    only the parent bone's location and rotation leave their defaults, and the template lies farther from
+    the scan than the full fit."""
+    target = prepare_target(sonicom / "P143" / "pinna_left_crop.ply")
+    placed = align(model, target, AlignSettings(stages=()))
+    names = [spec.name for spec in parameter_specs()]
+    changed = {name for name, delta in zip(names, placed.parameters.to_vector() - PinnaParameters.default().to_vector())
+               if abs(delta) > 1e-9}
+    assert changed and changed <= {f"{kind}_Size-Bendy_{axis}" for kind in ("Location", "Rotation") for axis in "XYZ"}
+    placed_median = np.median(one_sided_distances_mm(target, placed.vertices_mm, model.faces))
+    fitted = align(model, target)
+    fitted_median = np.median(one_sided_distances_mm(target, fitted.vertices_mm, model.faces))
+    assert fitted_median < 0.5 < placed_median < 4.0

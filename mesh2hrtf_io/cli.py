@@ -42,7 +42,7 @@ def _export(args) -> dict:
     layout = write_project(args.project, head.vertices, head.faces, ears, grids, frequencies,
                            source_type={"both": "Both ears", "left": "Left ear", "right": "Right ear"}[args.ears],
                            title=args.head.stem, compute_hrirs=args.hrirs,
-                           numcalc_cluster_size=args.cluster_size if args.cluster_size != "auto" else "auto")
+                           numcalc_cluster_size=args.cluster_size)
     return {"project": str(args.project), "elements": layout.n_object_elements, "ear_ranges": layout.ear_ranges,
             "frequencies": len(frequencies), "grids": [g.name for g in grids],
             "numcalc_clusters": json.loads((args.project / "numcalc_clusters.json").read_text())}
@@ -102,11 +102,13 @@ def main(argv: list[str] | None = None) -> int:
         command.add_argument("--numcalc", default=None, help="NumCalc binary (default: PATH)")
         if name == "solve":
             command.add_argument("--steps", type=int, nargs="*", default=None, help="1-based steps (default: all)")
+    from .sofa_out import HRIR_RATE_HZ, HRIR_SAMPLES  # noqa: PLC0415
+
     collect = sub.add_parser("collect", help="write HRTF/HRIR SOFA files of a solved project")
     collect.add_argument("project", type=Path)
     collect.add_argument("--output", type=Path, default=None)
-    collect.add_argument("--hrir-rate", type=float, default=48000.0, help="rate of HRIRs rebuilt from a sparse set (Hz)")
-    collect.add_argument("--hrir-samples", type=int, default=320, help="taps of HRIRs rebuilt from a sparse set")
+    collect.add_argument("--hrir-rate", type=float, default=HRIR_RATE_HZ, help="rate of HRIRs rebuilt from a sparse set (Hz)")
+    collect.add_argument("--hrir-samples", type=int, default=HRIR_SAMPLES, help="taps of HRIRs rebuilt from a sparse set")
     check = sub.add_parser("doctor", help="say which solver is usable here, and why not")
     check.add_argument("--numcalc", default=None, help="NumCalc binary to check (default: PATH, then .venv/bin)")
     args = parser.parse_args(argv)

@@ -11,9 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
-from pathlib import Path
 
-import numpy as np
 
 from .bem import estimate_cost
 from .project_reader import read_project
@@ -62,7 +60,7 @@ def project_cost(folder: str | os.PathLike, solver: str = "embedded", numcalc: s
                            round(seconds / 3600, 3), cost.memory_gb_per_frequency, "dense operator model")
     if solver != "numcalc":
         raise ValueError(f"solver must be 'embedded' or 'numcalc', got {solver!r}")
-    from .numcalc import NumCalcError, estimate_memory, find_numcalc  # noqa: PLC0415
+    from .numcalc import NumCalcError, find_numcalc  # noqa: PLC0415
 
     try:
         binary = find_numcalc(numcalc)
@@ -75,14 +73,11 @@ def project_cost(folder: str | os.PathLike, solver: str = "embedded", numcalc: s
         return ProjectCost(n_elements, n_vertices, n_points, n_sources, len(frequencies), solver,
                            round(seconds / 3600, 3), float("nan"), "unknown (no NumCalc binary to run -estimate_ram)",
                            "element-count rule of thumb (no NumCalc binary; graded heads cost several times more)")
-    from .numcalc_cost import predict_steps, tree_of_project  # noqa: PLC0415
+    from .numcalc_cost import project_step_costs  # noqa: PLC0415
 
-    source_folder = project.sources[0].folder
-    memory = [e.memory_gb for e in estimate_memory(binary, source_folder)]
-    tree = tree_of_project(project.vertices_m, project.faces, source_folder / "NC.inp")
-    steps = predict_steps(project.vertices_m, project.faces, tree, frequencies, memory)
+    steps = project_step_costs(folder, binary)
     seconds = sum(step.seconds for step in steps) * n_sources
     return ProjectCost(n_elements, n_vertices, n_points, n_sources, len(frequencies), solver, round(seconds / 3600, 3),
-                       round(max(memory), 3), "NumCalc -estimate_ram",
-                       f"near-field pairs ({steps[0].near_pairs_million} M, {tree.levels} levels) and memory "
+                       round(max(step.memory_gb for step in steps), 3), "NumCalc -estimate_ram",
+                       f"near-field pairs ({steps[0].near_pairs_million} M, {steps[0].levels} levels) and memory "
                        "(mesh2hrtf_io.numcalc_cost)")

@@ -12,10 +12,11 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from amt_bridge.filterbank import erb_number_to_freq, freq_to_erb_number
+
 from .errors import Mesh2HrtfIoError
 
 PRESETS_FILE = Path(__file__).with_name("data") / "frequency_sets.yaml"
-ERB_CORNER_HZ = 1 / 0.00437  # the ERB-number scale is ln(1 + f / 228.8 Hz), up to a factor
 FEWEST_FOR_REBUILD = 8
 _SCALE_KEYS = {"erb": {"min", "max", "step_erb"}, "warped": {"min", "max", "count", "corner_hz"}}
 
@@ -46,9 +47,8 @@ def erb_frequencies(minimum_hz: float, maximum_hz: float, step_erb: float) -> np
     """Frequencies from min (Hz) in steps of ``step_erb`` on the ERB-number scale, up to max."""
     if not 0 < minimum_hz < maximum_hz or step_erb <= 0:
         raise Mesh2HrtfIoError(f"an ERB set needs 0 < min < max and step_erb > 0; got {minimum_hz}, {maximum_hz}, {step_erb}")
-    low, high = np.log1p(minimum_hz / ERB_CORNER_HZ), np.log1p(maximum_hz / ERB_CORNER_HZ)
-    step = step_erb / 9.2645  # ERB number = 9.2645 ln(1 + f / 228.8 Hz)
-    return ERB_CORNER_HZ * np.expm1(low + step * np.arange(int(np.floor((high - low) / step + 1e-9)) + 1))
+    low, high = freq_to_erb_number(np.float64(minimum_hz)), freq_to_erb_number(np.float64(maximum_hz))
+    return erb_number_to_freq(low + step_erb * np.arange(int(np.floor((high - low) / step_erb + 1e-9)) + 1))
 
 
 def check_frequency_set(frequencies_hz, source: str = "frequency set", nyquist_hz: float | None = None,
@@ -68,8 +68,8 @@ def check_frequency_set(frequencies_hz, source: str = "frequency set", nyquist_h
         raise Mesh2HrtfIoError(f"{source}: duplicate frequencies {sorted(set(f[1:][steps == 0].tolist()))} Hz; "
                                "list each once")
     if (steps < 0).any():
-        raise Mesh2HrtfIoError(f"{source}: frequencies must be sorted in increasing order (first drop after "
-                               f"{f[int(np.argmax(steps < 0))]:g} Hz)")
+        raise Mesh2HrtfIoError(f"{source}: frequencies must be strictly increasing, sorted in increasing order "
+                               f"(first drop after {f[int(np.argmax(steps < 0))]:g} Hz)")
     if nyquist_hz is not None and f[-1] > nyquist_hz * (1 + 1e-9):
         raise Mesh2HrtfIoError(f"{source}: {f[-1]:g} Hz lies above the Nyquist frequency {nyquist_hz:g} Hz of "
                                f"the output; drop it or use a sampling rate above {2 * f[-1]:g} Hz")

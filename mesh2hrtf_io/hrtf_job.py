@@ -77,20 +77,17 @@ def solve_embedded(project: str | os.PathLike, status_path: str | os.PathLike,
     from .embedded import solve_project_embedded  # noqa: PLC0415
     from .step_store import project_fingerprint, restore_step, save_step  # noqa: PLC0415
 
-    sources = range(1, len(read_project(project).sources) + 1)
-    n_steps = len(read_project(project).frequencies_hz)
-    restored = 0
-    if store:
-        for source in sources:
-            fingerprint = project_fingerprint(project, source)
-            restored += sum(restore_step(project, source, k, store, fingerprint) for k in range(1, n_steps + 1))
+    solved = read_project(project)
+    steps = range(1, len(solved.frequencies_hz) + 1)
+    fingerprints = ({source: project_fingerprint(project, source) for source in range(1, len(solved.sources) + 1)}
+                    if store else {})
+    restored = sum(restore_step(project, source, step, store, fingerprint)
+                   for source, fingerprint in fingerprints.items() for step in steps)
     summary = solve_project_embedded(project)
     summary["steps_restored"] = restored
-    if store:
-        for source in sources:
-            fingerprint = project_fingerprint(project, source)
-            for step in range(1, n_steps + 1):
-                save_step(project, source, step, store, fingerprint)
+    for source, fingerprint in fingerprints.items():
+        for step in steps:
+            save_step(project, source, step, store, fingerprint)
     write_text_atomic(status_path, json.dumps(summary, indent=2) + "\n")
 
 
@@ -98,8 +95,9 @@ def collect(project: str | os.PathLike, hrtf_path: str | os.PathLike, hrir_path:
             hrir: dict | None = None) -> None:
     """SOFA files of the sagittal-plane grid, moved to the declared outputs; ``hrir`` (config hrtf.hrir:
     sampling_rate_hz, n_samples) sets the HRIRs rebuilt from a sparse frequency set."""
-    hrir = hrir or {"sampling_rate_hz": 48000.0, "n_samples": 320}
-    from .sofa_out import collect_sofa  # noqa: PLC0415
+    from .sofa_out import HRIR_RATE_HZ, HRIR_SAMPLES, collect_sofa  # noqa: PLC0415
+
+    hrir = hrir or {"sampling_rate_hz": HRIR_RATE_HZ, "n_samples": HRIR_SAMPLES}
 
     with tempfile.TemporaryDirectory(dir=Path(hrtf_path).parent) as tmp:
         written = {p.name: p for p in collect_sofa(project, tmp, hrirs=True,

@@ -24,7 +24,7 @@ from .clusters import planned_cluster_tree
 from .constants import (DENSITY_KG_M3, EAR_VELOCITY_M_S, GRID_START_ID, MESH2HRTF_VERSION, SOURCE_TO_ROOT,
                         SPEED_OF_SOUND_M_S)
 from .errors import Mesh2HrtfIoError
-from .frequency_sets import is_linear_grid
+from .frequency_sets import check_frequency_set, is_linear_grid
 from .grids import EvaluationGrid
 from .units import mm_to_m
 
@@ -57,13 +57,7 @@ def _elements_text(ids: np.ndarray, nodes: np.ndarray, prop: int, group: int) ->
 
 
 def _check_frequencies(frequencies_hz) -> np.ndarray:
-    f = np.asarray(frequencies_hz, dtype=np.float64)
-    if f.ndim != 1 or len(f) == 0:
-        raise Mesh2HrtfIoError("frequencies_hz must be a non-empty 1-D list of frequencies in Hz")
-    if not np.isfinite(f).all() or (f <= 0).any():
-        raise Mesh2HrtfIoError("frequencies_hz must be finite and above 0 Hz (NumCalc drops 0 Hz)")
-    if (np.diff(f) <= 0).any():
-        raise Mesh2HrtfIoError("frequencies_hz must be strictly increasing")
+    f = check_frequency_set(frequencies_hz, "frequencies_hz")
     if f.max() >= 1e6:
         raise Mesh2HrtfIoError(f"frequencies_hz reach {f.max():g} Hz; NC.inp writes at most 99999.99 Hz")
     return f

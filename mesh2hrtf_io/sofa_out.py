@@ -26,6 +26,7 @@ from .sparse_hrtf import METHOD_NOTE, rebuild_hrirs
 
 APPLICATION = "ppm-hrtf mesh2hrtf_io"
 CAUSAL_SHIFT_M = 0.30
+HRIR_RATE_HZ, HRIR_SAMPLES = 48000.0, 320  # HRIRs rebuilt from a sparse set: the SONICOM references' own
 
 
 def _spherical(points_m: np.ndarray) -> np.ndarray:
@@ -118,8 +119,8 @@ def _write(sofa, path: Path) -> Path:
 
 
 def collect_sofa(folder: str | os.PathLike, output_folder: str | os.PathLike | None = None,
-                 hrirs: bool | None = None, hrir_sampling_rate_hz: float = 48000.0,
-                 hrir_samples: int = 320) -> list[Path]:
+                 hrirs: bool | None = None, hrir_sampling_rate_hz: float = HRIR_RATE_HZ,
+                 hrir_samples: int = HRIR_SAMPLES) -> list[Path]:
     """Write HRTF (and HRIR) SOFA files for every grid of a solved project; returns their paths.
 
     HRIRs of a linear grid Δf..f_max are exact (rate 2·f_max); those of any other set are rebuilt at

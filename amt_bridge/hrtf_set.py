@@ -117,8 +117,9 @@ def resampled_at(hrirs: HrirSet, frequencies_hz, interpolant: str = "pchip") -> 
     return dataclasses.replace(hrirs, irs=irs, source=f"{hrirs.source} at {frequencies.size} frequencies")
 
 
-def read_hrtf_set(path: str | os.PathLike) -> HrirSet:
-    """Read a SimpleFreeFieldHRIR or SimpleFreeFieldHRTF SOFA file (2 receivers: left, right)."""
+def _read_sofa_responses(path: str | os.PathLike) -> tuple[np.ndarray, float, np.ndarray, np.ndarray]:
+    """(impulse responses (M, R, N), rate in Hz, azimuth, elevation in degrees) of a SimpleFreeFieldHRIR or
+    SimpleFreeFieldHRTF file, any number of receivers R."""
     import sofar  # noqa: PLC0415
 
     path = Path(path)
@@ -155,4 +156,45 @@ def read_hrtf_set(path: str | os.PathLike) -> HrirSet:
         irs = irs[:, None, :]
     if len(azimuth) == 1 and irs.shape[0] > 1:
         azimuth, elevation = np.repeat(azimuth, irs.shape[0]), np.repeat(elevation, irs.shape[0])
+    return irs, rate, azimuth, elevation
+
+
+def read_hrtf_set(path: str | os.PathLike) -> HrirSet:
+    """Read a SimpleFreeFieldHRIR or SimpleFreeFieldHRTF SOFA file (2 receivers: left, right)."""
+    irs, rate, azimuth, elevation = _read_sofa_responses(path)
     return HrirSet(irs, rate, azimuth, elevation, source=str(path))
+
+
+def _unit_vectors(azimuth_deg: np.ndarray, elevation_deg: np.ndarray) -> np.ndarray:
+    az, el = np.radians(azimuth_deg), np.radians(elevation_deg)
+    return np.stack([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)], axis=1)
+
+
+def read_one_ear_completed(path: str | os.PathLike, solved_ear: str, other: HrirSet,
+                           tolerance_deg: float = 0.1) -> HrirSet:
+    """A SOFA file holding one ear only (``solved_ear``: "left" or "right", e.g. a head solved for its left ear)
+    completed with the opposite ear of ``other`` (e.g. the reference HRIRs, rebuilt at the same frequencies),
+    direction by direction: the only difference from ``other`` is then the solved ear. Directions must
+    match within ``tolerance_deg``; rate and length must be equal."""
+    if solved_ear not in ("left", "right"):
+        raise AmtBridgeError(f"solved_ear must be 'left' or 'right', got {solved_ear!r}")
+    irs, rate, azimuth, elevation = _read_sofa_responses(path)
+    if irs.shape[1] != 1:
+        raise AmtBridgeError(f"{path}: {irs.shape[1]} receivers; completing an ear needs a one-ear file")
+    if abs(rate - other.sampling_rate_hz) > 1e-6 or irs.shape[2] != other.irs.shape[2]:
+        raise AmtBridgeError(f"{path}: {rate:g} Hz x {irs.shape[2]} samples, but {other.source} has "
+                             f"{other.sampling_rate_hz:g} Hz x {other.irs.shape[2]}; rebuild both alike (config hrtf.hrir)")
+    mine, theirs = _unit_vectors(azimuth, elevation), _unit_vectors(other.azimuth_deg, other.elevation_deg)
+    cosines = mine @ theirs.T
+    nearest = np.argmax(cosines, axis=1)
+    off_deg = np.degrees(np.arccos(np.clip(cosines[np.arange(len(mine)), nearest], -1.0, 1.0)))
+    if off_deg.max() > tolerance_deg or len(np.unique(nearest)) != len(nearest):
+        raise AmtBridgeError(f"{path}: its {len(mine)} directions do not match {other.source}'s (up to "
+                             f"{off_deg.max():.2f} deg apart); solve on the reference's directions "
+                             "(config hrtf.grid: reference_sofa)")
+    solved, kept = (0, 1) if solved_ear == "left" else (1, 0)
+    combined = np.empty((len(mine), 2, irs.shape[2]))
+    combined[:, solved] = irs[:, 0]
+    combined[:, kept] = other.irs[nearest, kept]
+    return HrirSet(combined, rate, azimuth, elevation,
+                   source=f"{path} ({solved_ear} ear) + {other.source} ({'right' if kept else 'left'} ear)")

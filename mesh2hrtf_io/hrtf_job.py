@@ -17,7 +17,7 @@ from ppm.progress import Progress
 
 from .frequency_sets import describe_set, frequencies_from_spec
 from .errors import Mesh2HrtfIoError
-from .grids import sagittal_grid
+from .grids import grid_from_sofa, sagittal_grid
 from .project import write_project
 from .project_reader import read_project
 
@@ -25,8 +25,11 @@ log = logging.getLogger(__name__)
 SOURCE_TYPES = {"both": "Both ears", "left": "Left ear", "right": "Right ear"}
 
 
-def export_head_project(head_path: str | os.PathLike, project: str | os.PathLike, settings: dict) -> None:
-    """Export ``head_path`` (mm) with ear-canal sources, a sagittal-plane grid and the configured frequencies."""
+def export_head_project(head_path: str | os.PathLike, project: str | os.PathLike, settings: dict,
+                        grid_sofa: str | os.PathLike | None = None, title: str | None = None) -> None:
+    """Export ``head_path`` (mm) with ear-canal sources (config hrtf.ears) and the configured frequencies, on
+    the sagittal-plane grid or, with ``grid_sofa``, on that SOFA file's source positions (grid "Directions",
+    e.g. the reference HRIRs' 793, so that solved and reference sets combine direction by direction)."""
     import trimesh  # noqa: PLC0415
 
     from stitching.ear_canal import ear_canal_elements  # noqa: PLC0415
@@ -38,8 +41,10 @@ def export_head_project(head_path: str | os.PathLike, project: str | os.PathLike
     sides = ("left", "right") if settings["ears"] == "both" else (settings["ears"],)
     ears = {side: ear_canal_elements(head, side, source=str(head_path)) for side in sides}
     frequencies = frequencies_from_spec(settings["frequencies_hz"])
-    layout = write_project(project, head.vertices, head.faces, ears, [sagittal_grid(polar_step_deg=settings["polar_step_deg"])],
-                           frequencies, source_type=SOURCE_TYPES[settings["ears"]], title=head_path.parent.name,
+    grid = (grid_from_sofa(grid_sofa, name="Directions") if grid_sofa
+            else sagittal_grid(polar_step_deg=settings["polar_step_deg"]))
+    layout = write_project(project, head.vertices, head.faces, ears, [grid],
+                           frequencies, source_type=SOURCE_TYPES[settings["ears"]], title=title or head_path.parent.name,
                            compute_hrirs=True, numcalc_cluster_size=settings.get("numcalc_cluster_size", "auto"))
     log.info("exported %s: %d elements, ears %s, %s", project, layout.n_object_elements, layout.ear_ranges,
              describe_set(frequencies))
@@ -65,7 +70,7 @@ def solve_numcalc_steps(project: str | os.PathLike, source: int, steps, status_p
             binary = binary or find_numcalc(numcalc)
             statuses.append(run_step(binary, folder, step, points, max_iterations))
             if store:
-                save_step(project, source, step, store, fingerprint)
+                save_step(project, source, step, store, fingerprint, statuses[-1])
         progress.step(f"step {step}")
     write_text_atomic(status_path, json.dumps({"steps": statuses}, indent=2) + "\n")
 
@@ -93,7 +98,7 @@ def solve_embedded(project: str | os.PathLike, status_path: str | os.PathLike,
 
 def collect(project: str | os.PathLike, hrtf_path: str | os.PathLike, hrir_path: str | os.PathLike,
             hrir: dict | None = None) -> None:
-    """SOFA files of the sagittal-plane grid, moved to the declared outputs; ``hrir`` (config hrtf.hrir:
+    """SOFA files of the project's (first) grid, moved to the declared outputs; ``hrir`` (config hrtf.hrir:
     sampling_rate_hz, n_samples) sets the HRIRs rebuilt from a sparse frequency set."""
     from .sofa_out import HRIR_RATE_HZ, HRIR_SAMPLES, collect_sofa  # noqa: PLC0415
 

@@ -11,6 +11,7 @@ result. Files are small (~13 kB per step for 793 points) and written atomically.
 from __future__ import annotations
 
 import hashlib
+import json
 import io
 import os
 from pathlib import Path
@@ -41,9 +42,10 @@ def _stored(store: Path, source: int, step: int) -> Path:
 
 
 def save_step(project_dir: str | os.PathLike, source: int, step: int, store: str | os.PathLike,
-              fingerprint: str | None = None) -> Path:
+              fingerprint: str | None = None, status: dict | None = None) -> Path:
     """Copy a solved step (complete result) from the project into the store (kept as it is when the store
-    already holds it for this fingerprint: committed files do not churn)."""
+    already holds it for this fingerprint: committed files do not churn). ``status`` (the solver's, e.g.
+    NumCalc's attempts with their seconds) is kept with it, so the CPU time of a result survives restoring."""
     fingerprint = fingerprint or project_fingerprint(project_dir, source)
     target = _stored(Path(store), source, step)
     if target.is_file():
@@ -57,7 +59,7 @@ def save_step(project_dir: str | os.PathLike, source: int, step: int, store: str
     buffer = io.BytesIO()
     np.savez_compressed(buffer, pressure=pressure.astype(np.complex128), node_ids=nodes.astype(np.int64),
                         frequency_hz=float(project.frequencies_hz[step - 1]),
-                        fingerprint=fingerprint)
+                        fingerprint=fingerprint, status_json=json.dumps(status or {}))
     target.parent.mkdir(parents=True, exist_ok=True)
     with atomic_path(target) as tmp:
         Path(tmp).write_bytes(buffer.getvalue())
@@ -80,3 +82,21 @@ def restore_step(project_dir: str | os.PathLike, source: int, step: int, store: 
         return True
     write_eval_grid_pressure(folder, step, nodes, pressure)
     return True
+
+
+def stored_status(store: str | os.PathLike, source: int, step: int) -> dict | None:
+    """The solver status kept with a stored step ({} when saved without one), None when not stored."""
+    path = _stored(Path(store), source, step)
+    if not path.is_file():
+        return None
+    with np.load(path) as stored:
+        return json.loads(str(stored["status_json"])) if "status_json" in stored.files else {}
+
+
+def solve_seconds(status: dict | None) -> float:
+    """Wall-clock seconds a step's solver status records (NumCalc attempts, or the embedded solver's)."""
+    if not status:
+        return 0.0
+    if "attempts" in status:
+        return float(sum(attempt.get("seconds", 0.0) for attempt in status["attempts"]))
+    return float(status.get("seconds", 0.0))

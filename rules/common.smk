@@ -53,7 +53,8 @@ else:
 
 wildcard_constraints:
     subject="|".join(SUBJECTS),
-    variant="reference|ppm",
+    variant="reference|ppm|own_pinna|default_ppm",
+    control="own_pinna|default_ppm",
     source="[12]",
     first="[0-9]+",
     last="[0-9]+",
@@ -79,7 +80,31 @@ def template_params():
     return config["template"]
 
 
-HRTF_VARIANTS = ("reference", "ppm")
+HRTF_VARIANTS = ("reference", "ppm", "own_pinna", "default_ppm")
+CONTROLS = ("own_pinna", "default_ppm")
+
+
+def evaluation_conditions(subject: str) -> list[str]:
+    """The solved conditions of a subject's evaluation (config evaluation.conditions; default_ppm only for the
+    subjects of evaluation.default_ppm_subjects, all when that list is empty)."""
+    chosen = config["evaluation"]["default_ppm_subjects"]
+    return [c for c in config["evaluation"]["conditions"]
+            if c != "default_ppm" or not chosen or subject in chosen]
+
+
+def control_pinna(wildcards) -> str:
+    """The pinna a control condition stitches onto the head (mm): the head's own pinna region (own_pinna) or
+    the template placed by the global pose only (default_ppm)."""
+    if wildcards.control == "own_pinna":
+        return f"results/{wildcards.subject}/controls/own_pinna/pinna.ply"
+    return f"results/{wildcards.subject}/controls/default_ppm/align/aligned_pinna.ply"
+
+
+def condition_pinna(subject: str, condition: str) -> str:
+    """The pinna surface (mm) a condition's head carries, for the target <-> model distances."""
+    if condition == "ppm":
+        return f"results/{subject}/align/aligned_pinna.ply"
+    return control_pinna(type("Wildcards", (), {"subject": subject, "control": condition}))
 
 
 def hrtf_frequencies():
@@ -96,7 +121,22 @@ def hrtf_head_mesh(wildcards):
         return str(DATA_ROOT / wildcards.subject / config["hrtf"]["reference_head"])
     if wildcards.variant == "ppm":
         return f"results/{wildcards.subject}/remesh/head.ply"
+    if wildcards.variant in CONTROLS:
+        return f"results/{wildcards.subject}/controls/{wildcards.variant}/head.ply"
     raise ValueError(f"unknown HRTF variant {wildcards.variant!r}; known: {HRTF_VARIANTS}")
+
+
+def hrtf_export_inputs(wildcards) -> dict:
+    """The head mesh and, with config hrtf.grid = reference_sofa, the reference SOFA whose directions the
+    project is solved at (so that solved and reference ears combine direction by direction)."""
+    inputs = {"head": hrtf_head_mesh(wildcards)}
+    if config["hrtf"]["grid"] == "reference_sofa":
+        given = DATA_ROOT / wildcards.subject / config["localisation"]["reference_sofa"]
+        if not given.is_file():
+            raise ValueError(f"config hrtf.grid=reference_sofa: {given} is missing; give the reference HRIRs or use "
+                             "hrtf.grid: sagittal")
+        inputs["grid_sofa"] = str(given)
+    return inputs
 
 
 def step_store(wildcards):
@@ -168,7 +208,7 @@ def reference_sofa(wildcards):
     given = DATA_ROOT / wildcards.subject / config["localisation"]["reference_sofa"]
     if given.is_file():
         return str(given)
-    return f"results/{wildcards.subject}/hrtf/reference/HRIR_SagittalPlanes.sofa"
+    return f"results/{wildcards.subject}/hrtf/reference/HRIR.sofa"
 
 
 def reference_frequencies(wildcards):
@@ -180,6 +220,14 @@ def reference_frequencies(wildcards):
     if is_linear_grid(frequencies) or not reference_sofa(wildcards).startswith(str(DATA_ROOT)):
         return None
     return frequencies.tolist()
+
+
+def localisation_inputs(wildcards) -> dict:
+    """The reference HRIRs and the HRIRs of every solved condition of the subject (by condition name)."""
+    inputs = {"reference": reference_sofa(wildcards)}
+    for condition in evaluation_conditions(wildcards.subject):
+        inputs[condition] = f"results/{wildcards.subject}/hrtf/{condition}/HRIR.sofa"
+    return inputs
 
 
 def subject_report_inputs(wildcards):

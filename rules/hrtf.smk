@@ -1,12 +1,13 @@
 # HRTFs of head meshes: Mesh2HRTF project export, solving (NumCalc one job per ear and range of
 # frequency steps, hrtf.steps_per_job long, or the embedded solver one job per project), and
 # collection into SOFA files.
-# Variants: "reference" = the dataset's ground-truth head (<subject>/head_graded_left.ply).
+# Variants: "reference" = the dataset's ground-truth head (<subject>/head_graded_left.ply); "ppm" = the head
+# with the aligned PPM stitched in; the controls "own_pinna" and "default_ppm" (rules/controls.smk).
 
 
 rule export_project:
     input:
-        head=hrtf_head_mesh,
+        unpack(hrtf_export_inputs),
     output:
         project=directory("results/{subject}/hrtf/{variant}/project"),
     log:
@@ -15,6 +16,7 @@ rule export_project:
         "benchmarks/timings/hrtf/export_project/{subject}_{variant}.tsv"
     params:
         settings=lambda wc: config["hrtf"],
+        title=lambda wc: f"{wc.subject}_{wc.variant}",
     threads: 1
     resources:
         mem_mb=2000,
@@ -68,8 +70,8 @@ rule collect_sofa:
         project="results/{subject}/hrtf/{variant}/project",
         steps=solved_steps,
     output:
-        hrtf="results/{subject}/hrtf/{variant}/HRTF_SagittalPlanes.sofa",
-        hrir="results/{subject}/hrtf/{variant}/HRIR_SagittalPlanes.sofa",
+        hrtf="results/{subject}/hrtf/{variant}/HRTF.sofa",
+        hrir="results/{subject}/hrtf/{variant}/HRIR.sofa",
     log:
         "logs/hrtf/collect_sofa/{subject}_{variant}.log",
     params:

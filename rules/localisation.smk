@@ -1,11 +1,11 @@
-# baumgartner2014: quadrant and polar errors predicted for the PPM head's HRTFs heard with the
-# reference listener's HRTFs as template, S calibrated on the reference (config localisation).
+# baumgartner2014: quadrant and polar errors predicted for the HRTFs of each solved condition (the PPM head,
+# and the controls of config evaluation.conditions) heard with the reference listener's HRTFs as template,
+# S calibrated on the reference (config localisation).
 
 
 rule localisation:
     input:
-        reference=reference_sofa,
-        ppm="results/{subject}/hrtf/ppm/HRIR_SagittalPlanes.sofa",
+        unpack(localisation_inputs),
     output:
         summary="results/{subject}/localisation/qe_pe.json",
         bars="results/{subject}/localisation/qe_pe_bars.png",
@@ -19,6 +19,8 @@ rule localisation:
         settings=lambda wc: config["localisation"],
         reference_frequencies=reference_frequencies,
         frequency_set=lambda wc: config["hrtf"]["frequencies_hz"],
+        conditions=lambda wc: evaluation_conditions(wc.subject),
+        solved_ear=lambda wc: None if config["hrtf"]["ears"] == "both" else config["hrtf"]["ears"],
     threads: 1
     resources:
         mem_mb=2000,

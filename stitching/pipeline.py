@@ -17,7 +17,7 @@ from ppm.mesh_io import write_mesh
 from .ear_canal import ear_canal_elements
 from .errors import StitchError
 from .remesh import DEFAULT_BANDS, remesh_graded, repair_self_intersections
-from .replace_pinna import replace_pinna
+from .replace_pinna import own_pinna_region, replace_pinna
 from .report import validate_head
 from .seam import smooth_seam
 
@@ -35,6 +35,20 @@ def _load(path: str | os.PathLike, what: str) -> trimesh.Trimesh:
     if len(mesh.faces) == 0:
         raise StitchError(f"{path}: the {what} mesh has no triangles")
     return mesh
+
+
+def own_pinna_files(head_path: str | os.PathLike, pinna_path: str | os.PathLike, out_mesh: str | os.PathLike,
+                    out_report: str | os.PathLike) -> dict:
+    """The head's own left pinna under the aligned pinna, cut out as an open surface (mm) to be stitched back
+    and remeshed like a PPM pinna: the own_pinna control of the evaluation."""
+    start = time.perf_counter()
+    head, pinna = _load(head_path, "head"), _load(pinna_path, "pinna")
+    region = own_pinna_region(head, pinna, pinna_source=str(pinna_path))
+    report = {"head": str(head_path), "pinna": str(pinna_path), "n_triangles": int(len(region.faces)),
+              "area_mm2": round(float(region.area), 1), "seconds": round(time.perf_counter() - start, 2)}
+    write_mesh(out_mesh, region.vertices, region.faces)
+    write_text_atomic(out_report, json.dumps(report, indent=2) + "\n")
+    return report
 
 
 def stitch_files(head_path: str | os.PathLike, pinna_path: str | os.PathLike, out_mesh: str | os.PathLike,

@@ -220,3 +220,40 @@ def test_experimental_targets_interpolate_per_target_values(axd1):
     assert doubled.qe_percent == pytest.approx(expected, abs=1e-9)
     middle = performance(plane.p, plane.tang, plane.rang, experimental_polar_deg=[(plane.tang[2] + plane.tang[3]) / 2])
     assert middle.pe_deg == pytest.approx(plane.performance.pe_per_target[2:4].mean(), abs=1e-9)
+
+
+def test_a_one_ear_set_takes_the_other_ear_from_the_reference_direction_by_direction(tmp_path, sonicom):
+    """The evaluation solves the left ear only; the right ear comes from the reference, matched by direction
+    (the solved file's directions in another order), so that only the left pinna differs."""
+    from amt_bridge.evaluation import compare_conditions
+    from amt_bridge.hrtf_set import read_one_ear_completed
+
+    reference_path = sonicom / "P039" / "hrir_mesh2hrtf_48k.sofa"
+    reference = read_hrtf_set(reference_path)
+    order = np.random.default_rng(3).permutation(len(reference.azimuth_deg))
+    left_only = _write_hrir_sofa(tmp_path / "left.sofa", reference.irs[order, :1, :],
+                                 azimuth=reference.azimuth_deg[order], elevation=reference.elevation_deg[order])
+    completed = read_one_ear_completed(left_only, "left", reference)
+    assert np.array_equal(completed.irs, reference.irs[order])
+    # the reference's own left ear, completed, is predicted as the reference itself (order does not matter)
+    sensitivity, predictions = compare_conditions(reference_path, {"own_left": left_only}, solved_ear="left")
+    assert predictions["reference"].qe == pytest.approx(8.0, abs=0.01)
+    assert predictions["own_left"].qe == pytest.approx(predictions["reference"].qe, abs=1e-4)
+    assert predictions["own_left"].pe == pytest.approx(predictions["reference"].pe, abs=1e-4)
+    # the left ear of another listener (P067) moves the prediction
+    other = read_hrtf_set(sonicom / "P067" / "hrir_mesh2hrtf_48k.sofa")
+    foreign = _write_hrir_sofa(tmp_path / "foreign.sofa", other.irs[:, :1, :], azimuth=other.azimuth_deg,
+                               elevation=other.elevation_deg)
+    _, moved = compare_conditions(reference_path, {"foreign_left": foreign}, solved_ear="left")
+    assert moved["foreign_left"].qe > predictions["reference"].qe + 1.0
+
+    elsewhere = _write_hrir_sofa(tmp_path / "moved.sofa", reference.irs[:, :1, :],
+                                 azimuth=reference.azimuth_deg + 2.0, elevation=reference.elevation_deg)
+    with pytest.raises(AmtBridgeError, match="do not match"):
+        read_one_ear_completed(elsewhere, "left", reference)
+    with pytest.raises(AmtBridgeError, match="one-ear file"):
+        read_one_ear_completed(reference_path, "left", reference)
+    short = _write_hrir_sofa(tmp_path / "short.sofa", reference.irs[:, :1, :128],
+                             azimuth=reference.azimuth_deg, elevation=reference.elevation_deg)
+    with pytest.raises(AmtBridgeError, match="rebuild both alike"):
+        read_one_ear_completed(short, "left", reference)

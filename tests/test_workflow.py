@@ -42,7 +42,7 @@ def test_dry_run_with_hrtfs_plans_one_numcalc_job_per_ear_and_frequency_of_the_s
     config = yaml.safe_load((work / "config" / "config.yaml").read_text())
     config["data_root"], config["hrtf"]["enabled"] = str(sonicom), True
     (work / "config" / "test_sets.yaml").write_text(yaml.safe_dump(config))
-    done = _run(["results/P039/hrtf/ppm/HRIR_SagittalPlanes.sofa", "-n", "--cores", "2", "--configfile",
+    done = _run(["results/P039/hrtf/ppm/HRIR.sofa", "-n", "--cores", "2", "--configfile",
                  "config/test_sets.yaml"], work)
     assert done.returncode == 0, done.stderr[-3000:]
     text = done.stdout + done.stderr
@@ -113,10 +113,10 @@ def test_default_run_makes_the_demo_through_every_stage(tmp_path):
     assert json.loads((base / "remesh" / "validation.json").read_text())["ok"] is True
     # HRTFs of both heads, SOFA files that pass sofar's checks
     for variant in ("reference", "ppm"):
-        hrir = sofar.read_sofa(str(base / "hrtf" / variant / "HRIR_SagittalPlanes.sofa"), verify=True)
+        hrir = sofar.read_sofa(str(base / "hrtf" / variant / "HRIR.sofa"), verify=True)
         assert hrir.Data_IR.shape[1:] == (2, 16) and hrir.Data_SamplingRate == 40000.0
         assert np.isfinite(hrir.Data_IR).all()
-        hrtf = sofar.read_sofa(str(base / "hrtf" / variant / "HRTF_SagittalPlanes.sofa"), verify=True)
+        hrtf = sofar.read_sofa(str(base / "hrtf" / variant / "HRTF.sofa"), verify=True)
         assert hrtf.Data_Real.shape[2] == 8
     # localisation: the reference calibrated to 8 % quadrant errors
     localisation = json.loads((base / "localisation" / "qe_pe.json").read_text())
@@ -172,7 +172,7 @@ def test_hrtf_rules_export_solve_and_collect_a_sphere_head(tmp_path):
     head = trimesh.creation.icosphere(subdivisions=2, radius=87.5)
     head.export(subject / "head_graded_left.ply")
     head.export(subject / "pinna_left_crop.ply")  # makes S1 a subject; alignment is not requested here
-    target = "results/S1/hrtf/reference/HRIR_SagittalPlanes.sofa"
+    target = "results/S1/hrtf/reference/HRIR.sofa"
     planned = _run([target, "-n", "--cores", "2", "--configfile",
                     str(_hrtf_config(work, tmp_path / "data", "numcalc"))], work)
     assert planned.returncode == 0, planned.stderr[-3000:]
@@ -213,7 +213,7 @@ def test_hrtf_rules_export_solve_and_collect_a_sphere_head(tmp_path):
     assert first_step.stat().st_mtime_ns == first_step_written
     hrir = sofar.read_sofa(str(work / target), verify=True)
     assert hrir.GLOBAL_SOFAConventions == "SimpleFreeFieldHRIR" and hrir.Data_IR.shape[1:] == (2, 40)
-    hrtf = sofar.read_sofa(str(work / "results/S1/hrtf/reference/HRTF_SagittalPlanes.sofa"), verify=True)
+    hrtf = sofar.read_sofa(str(work / "results/S1/hrtf/reference/HRTF.sofa"), verify=True)
     assert hrtf.Data_Real.shape == (108, 2, 20)  # 3 planes x 36 polar angles, 2 ears, 20 frequencies
     assert (work / "logs/hrtf/solve_embedded/S1_reference.log").is_file()
     again = _run([target, "-n", "--cores", "2", "--configfile", str(work / "config" / "test_hrtf.yaml")], work)
@@ -230,7 +230,7 @@ def test_localisation_rule_compares_ppm_and_reference_hrtfs(tmp_path, sonicom):
     subject.mkdir(parents=True)
     trimesh.creation.icosphere(subdivisions=1, radius=80.0).export(subject / "pinna_left_crop.ply")
     shutil.copy(hrtf_data / "measured_axd_example1.sofa", subject / "hrir_mesh2hrtf_48k.sofa")
-    ppm = work / "results" / "S1" / "hrtf" / "ppm" / "HRIR_SagittalPlanes.sofa"
+    ppm = work / "results" / "S1" / "hrtf" / "ppm" / "HRIR.sofa"
     ppm.parent.mkdir(parents=True)
     shutil.copy(hrtf_data / "measured_axd_example2.sofa", ppm)
     target = "results/S1/localisation/qe_pe.json"

@@ -1,4 +1,6 @@
-"""Rule align_ppm: fit the PPM (leave-one-subject-out template) to a subject's prepared left pinna scan."""
+"""Rules align_ppm and place_default_ppm: fit the PPM (leave-one-subject-out template) to a subject's prepared
+left pinna scan, or (params.global_pose_only, the evaluation's default_ppm control) only place the template at
+default parameters by the global pose."""
 import sys
 from pathlib import Path
 
@@ -9,7 +11,7 @@ configure_logging(snakemake)  # noqa: F821
 
 import bpy  # noqa: E402,F401  (before anything that may load pymeshlab)
 
-from ppm.align import align, prepare_target  # noqa: E402
+from ppm.align import AlignSettings, align, prepare_target  # noqa: E402
 from ppm.align.report import one_sided_distances_mm, write_alignment  # noqa: E402
 from ppm.model import PinnaModel  # noqa: E402
 from ppm.render import render_distance_map  # noqa: E402
@@ -17,8 +19,10 @@ from ppm.render import render_distance_map  # noqa: E402
 out_dir = Path(snakemake.output.summary).parent  # noqa: F821
 model = PinnaModel.from_template(Path(snakemake.input.template).parent)  # noqa: F821
 target = prepare_target(snakemake.input.target, side="left", segment=False)  # noqa: F821  (prepared already)
-result = align(model, target)
-write_alignment(out_dir, model, target, result, extra={"template": snakemake.input.template})  # noqa: F821
+global_pose_only = bool(snakemake.params.get("global_pose_only", False))  # noqa: F821
+result = align(model, target, AlignSettings(stages=()) if global_pose_only else None)
+write_alignment(out_dir, model, target, result, extra={"template": snakemake.input.template,  # noqa: F821
+                                                       "global_pose_only": global_pose_only})
 distance = one_sided_distances_mm(target, result.vertices_mm, model.faces)
 render_distance_map(target.points_mm, None, distance, snakemake.output.picture,  # noqa: F821
-                    f"{snakemake.wildcards.subject}: scan -> aligned PPM")  # noqa: F821
+                    f"{snakemake.wildcards.subject}: scan -> {'placed default' if global_pose_only else 'aligned'} PPM")  # noqa: F821

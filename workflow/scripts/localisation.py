@@ -1,4 +1,5 @@
-"""Rule localisation: QE/PE of the PPM head's HRTFs against the reference listener (baumgartner2014)."""
+"""Rule localisation: QE/PE of each solved condition's HRTFs (the PPM head, the controls) against the reference
+listener (baumgartner2014)."""
 import json
 import sys
 from pathlib import Path
@@ -16,10 +17,12 @@ from ppm.atomic import write_text_atomic  # noqa: E402
 settings = snakemake.params.settings  # noqa: F821
 out = snakemake.output  # noqa: F821
 reference_frequencies = snakemake.params.reference_frequencies  # noqa: F821
-sensitivity, predictions = compare_conditions(snakemake.input.reference, {"ppm": snakemake.input.ppm},  # noqa: F821
+conditions = {name: snakemake.input[name] for name in snakemake.params.conditions}  # noqa: F821
+sensitivity, predictions = compare_conditions(snakemake.input.reference, conditions,  # noqa: F821
                                               settings["calibration_qe_percent"], settings["lateral_angles_deg"],
-                                              reference_frequencies)
-save_error_bars(predictions, out.bars, title=f"{snakemake.wildcards.subject}: reference vs PPM")  # noqa: F821
+                                              reference_frequencies, snakemake.params.solved_ear)  # noqa: F821
+save_error_bars(predictions, out.bars,
+                title=f"{snakemake.wildcards.subject}: reference vs {', '.join(conditions)}")  # noqa: F821
 save_prediction_matrices(predictions["reference"], out.reference_matrix, title="reference")
 save_prediction_matrices(predictions["ppm"], out.ppm_matrix, title="PPM")
 summary = comparison_summary(snakemake.input.reference, settings["calibration_qe_percent"], sensitivity,  # noqa: F821
@@ -28,4 +31,5 @@ frequencies = frequencies_from_spec(snakemake.params.frequency_set)  # noqa: F82
 summary["frequency_set"] = {"spec": snakemake.params.frequency_set, "description": describe_set(frequencies),  # noqa: F821
                             "frequencies_hz": frequencies.tolist(),
                             "reference_rebuilt_at_set": reference_frequencies is not None}
+summary["solved_ear"] = snakemake.params.solved_ear or "both"  # noqa: F821
 write_text_atomic(out.summary, json.dumps(summary, indent=2) + "\n")

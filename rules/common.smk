@@ -230,6 +230,27 @@ def localisation_inputs(wildcards) -> dict:
     return inputs
 
 
+EVALUATION_FOLDER = config["evaluation"]["folder"]
+#: How the evaluation was configured, for its README (the configfiles given on the command line).
+EVALUATION_CONFIGFILES = [str(path) for path in workflow.overwrite_configfiles]
+
+
+def evaluation_report_inputs(wildcards) -> dict:
+    """Everything the dataset evaluation reads: per subject the localisation, the target scan and, per
+    condition, the distances, the collected HRTFs and the solve statuses (for the CPU time)."""
+    inputs = {}
+    for subject in SUBJECTS:
+        inputs[f"{subject}_localisation"] = f"results/{subject}/localisation/qe_pe.json"
+        inputs[f"{subject}_target"] = f"results/{subject}/target/pinna_target.ply"
+        for condition in evaluation_conditions(subject):
+            wc = type("Wildcards", (), {"subject": subject, "variant": condition})
+            inputs[f"{subject}_{condition}_distances"] = f"results/{subject}/evaluation/{condition}/distances.json"
+            inputs[f"{subject}_{condition}_hrtf"] = f"results/{subject}/hrtf/{condition}/HRTF.sofa"
+            inputs[f"{subject}_{condition}_head"] = hrtf_head_mesh(wc)
+            inputs[f"{subject}_{condition}_steps"] = solved_steps(wc)
+    return inputs
+
+
 def subject_report_inputs(wildcards):
     """Every per-subject result the report shows (the localisation only when HRTFs are computed)."""
     base = f"results/{wildcards.subject}"
@@ -266,4 +287,6 @@ def get_final_output():
     if config["hrtf"]["enabled"]:
         out += [f"results/{s}/localisation/qe_pe.json" for s in SUBJECTS]
     out += [f"results/{s}/report.html" for s in SUBJECTS] + ["results/dataset_report.html"]
+    if EVALUATION_FOLDER and config["hrtf"]["enabled"]:
+        out.append(f"{EVALUATION_FOLDER}/summary.csv")
     return out

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 import trimesh
+from scipy.spatial import cKDTree
 
 from ..atomic import atomic_path, write_text_atomic
 from ..model import PinnaModel
@@ -39,6 +40,31 @@ def one_sided_distances_mm(target: Target, vertices_mm: np.ndarray, faces: np.nd
     """(n,) distance in mm from every target point to the surface (vertices_mm, faces)."""
     mesh = trimesh.Trimesh(vertices_mm, faces, process=False)
     return trimesh.proximity.closest_point(mesh, target.points_mm)[1]
+
+
+def reverse_distances_mm(target: Target, vertices_mm: np.ndarray, boundary_margin_mm: float = 1.0
+                         ) -> tuple[np.ndarray, np.ndarray]:
+    """Model -> scan: (distance in mm from every model vertex to the scan surface, mask of the vertices that
+    count). A vertex counts when its closest scan point lies at least ``boundary_margin_mm`` from the scan's
+    open boundary (the crop's edge and its holes): model surface beyond the scanned region has nothing to be
+    compared with. Without a scan surface (points only) every vertex counts, measured to the points."""
+    vertices_mm = np.asarray(vertices_mm, dtype=np.float64)
+    mesh = target.mesh
+    if mesh is None or len(mesh.faces) == 0:
+        distance = cKDTree(target.points_mm).query(vertices_mm)[0]
+        return distance, np.ones(len(vertices_mm), dtype=bool)
+    closest, distance, _ = trimesh.proximity.closest_point(mesh, vertices_mm)
+    edges = mesh.edges_sorted
+    unique, counts = np.unique(edges, axis=0, return_counts=True)
+    boundary = np.unique(unique[counts == 1])
+    if len(boundary) == 0:
+        return distance, np.ones(len(vertices_mm), dtype=bool)
+    # boundary edges sampled every ~0.25 mm, so that a long edge's middle is not missed
+    ends = mesh.vertices[unique[counts == 1]]
+    steps = np.linspace(0.0, 1.0, 5)[:, None, None]
+    samples = (ends[None, :, 0] * (1 - steps) + ends[None, :, 1] * steps).reshape(-1, 3)
+    away = cKDTree(samples).query(closest)[0] >= boundary_margin_mm
+    return distance, away
 
 
 def distance_summary(distance_mm: np.ndarray) -> dict[str, float]:

@@ -1,0 +1,330 @@
+"""The dataset evaluation (the paper's Figures 6 and 7 for a dataset): per subject and condition the predicted
+localisation (baumgartner2014, reference as template, S calibrated on the reference), the distances between
+the target scan and the condition's pinna, and the cost of solving; written as summary.csv, the solved
+left-ear HRTFs, two figures, an HTML page and a README into one folder kept in the repository.
+
+Distances are in millimetres: target -> model is the paper's one-sided Hausdorff distance (every scan point to
+the pinna surface); model -> target is every model vertex to the scan surface, over the scanned region only
+(:func:`ppm.align.report.reverse_distances_mm`).
+"""
+from __future__ import annotations
+
+import csv
+import hashlib
+import html
+import io
+import json
+import os
+import shutil
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from ppm.atomic import atomic_path, write_text_atomic
+
+#: Columns of summary.csv, in order (the issue's, then provenance).
+COLUMNS = ("subject", "condition", "qe_percent", "pe_deg", "eb_deg", "sensitivity_db", "delta_qe_pp", "delta_pe_deg",
+           "distance_median_mm", "distance_p95_mm", "reverse_median_mm", "reverse_p95_mm", "n_frequencies",
+           "solve_cpu_hours", "n_elements", "steps_solved_here", "steps_restored", "head_sha256")
+
+#: The evaluation's goals: |ΔQE| (pp) and |ΔPE| (deg) against the reference, per condition.
+GOALS = {"ppm": (2.0, 2.0), "own_pinna": (1.0, 1.0)}
+
+CONDITION_LABELS = {"reference": "reference (dataset HRIRs, rebuilt at the set)", "ppm": "PPM (aligned, LOO template)",
+                    "own_pinna": "own pinna (stitch + remesh control)", "default_ppm": "default PPM (global pose only)"}
+
+
+def condition_distances(target_path: str | os.PathLike, pinna_path: str | os.PathLike,
+                        summary_path: str | os.PathLike, points_path: str | os.PathLike) -> dict:
+    """Target -> pinna and pinna -> target distances (mm) of one condition: a JSON summary and the per-point
+    values (npz: ``target_to_model`` per scan point, ``model_to_target`` per pinna vertex, ``counted`` mask)."""
+    import trimesh  # noqa: PLC0415
+
+    from ppm.align.report import distance_summary, one_sided_distances_mm, reverse_distances_mm  # noqa: PLC0415
+    from ppm.align.target import prepare_target  # noqa: PLC0415
+
+    target = prepare_target(target_path, side="left", segment=False)
+    pinna = trimesh.load(pinna_path, process=False, force="mesh")
+    if len(pinna.faces) == 0:
+        raise ValueError(f"{pinna_path}: no faces; give the condition's pinna surface (mm)")
+    forward = one_sided_distances_mm(target, pinna.vertices, pinna.faces)
+    reverse, counted = reverse_distances_mm(target, pinna.vertices)
+    if not counted.any():
+        raise ValueError(f"{pinna_path}: no vertex of the pinna lies over the scanned region of {target_path}; "
+                         "is it placed at this subject's left ear?")
+    summary = {"target": str(target_path), "pinna": str(pinna_path),
+               "target_to_model": distance_summary(forward),
+               "model_to_target": distance_summary(reverse[counted]),
+               "model_vertices_counted": int(counted.sum()), "model_vertices": int(len(counted))}
+    buffer = io.BytesIO()
+    np.savez_compressed(buffer, target_to_model=forward, model_to_target=reverse, counted=counted,
+                        target_points_mm=target.points_mm)
+    with atomic_path(points_path) as tmp:
+        Path(tmp).write_bytes(buffer.getvalue())
+    write_text_atomic(summary_path, json.dumps(summary, indent=2) + "\n")
+    return summary
+
+
+def _sha256(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def solve_cost(status_files: list[str | os.PathLike], store: str | os.PathLike | None) -> dict:
+    """Seconds of solving recorded by the step jobs' statuses; restored steps count with the seconds kept in
+    the step store (where they were solved), so the total is the CPU time of the result, wherever it was made."""
+    from mesh2hrtf_io.step_store import solve_seconds, stored_status  # noqa: PLC0415
+
+    seconds, solved, restored = 0.0, 0, 0
+    for path in map(Path, status_files):
+        statuses = json.loads(path.read_text())
+        source = int(path.parent.name.split("_")[-1]) if path.parent.name.startswith("source_") else 1
+        for status in statuses.get("steps", [statuses]):
+            if "restored_from" in status:
+                restored += 1
+                seconds += solve_seconds(stored_status(status["restored_from"], source, status["step"]))
+            else:
+                solved += 1
+                seconds += solve_seconds(status)
+    return {"seconds": seconds, "steps_solved_here": solved, "steps_restored": restored}
+
+
+def evaluation_rows(results: str | os.PathLike, subjects: list[str], conditions: dict[str, list[str]],
+                    heads: dict[tuple[str, str], str], steps: dict[tuple[str, str], list[str]],
+                    store: str | os.PathLike | None = None) -> list[dict]:
+    """One row per subject and condition (the reference first) with the columns of :data:`COLUMNS`."""
+    from mesh2hrtf_io.project_reader import read_project  # noqa: PLC0415
+
+    results = Path(results)
+    rows = []
+    for subject in subjects:
+        localisation = json.loads((results / subject / "localisation" / "qe_pe.json").read_text())
+        predicted = localisation["conditions"]
+        reference = predicted["reference"]
+        n_frequencies = len(localisation.get("frequency_set", {}).get("frequencies_hz", [])) or None
+        for condition in ["reference", *conditions[subject]]:
+            p = predicted[condition]
+            row = {"subject": subject, "condition": condition, "qe_percent": p["qe_percent"], "pe_deg": p["pe_deg"],
+                   "eb_deg": p["eb_deg"], "sensitivity_db": localisation["sensitivity_db"],
+                   "delta_qe_pp": p["qe_percent"] - reference["qe_percent"],
+                   "delta_pe_deg": p["pe_deg"] - reference["pe_deg"], "n_frequencies": n_frequencies}
+            if condition != "reference":
+                distances = json.loads((results / subject / "evaluation" / condition / "distances.json").read_text())
+                cost = solve_cost(steps[subject, condition], Path(store) / subject / condition if store else None)
+                project = read_project(results / subject / "hrtf" / condition / "project")
+                row.update(distance_median_mm=distances["target_to_model"]["median_mm"],
+                           distance_p95_mm=distances["target_to_model"]["p95_mm"],
+                           reverse_median_mm=distances["model_to_target"]["median_mm"],
+                           reverse_p95_mm=distances["model_to_target"]["p95_mm"],
+                           solve_cpu_hours=round(cost["seconds"] / 3600.0, 3), n_elements=len(project.faces),
+                           steps_solved_here=cost["steps_solved_here"], steps_restored=cost["steps_restored"],
+                           head_sha256=_sha256(Path(heads[subject, condition]))[:16])
+            rows.append(row)
+    return rows
+
+
+def goal_lines(rows: list[dict]) -> list[str]:
+    """One line per subject and goal condition: met or missed, with the numbers."""
+    lines = []
+    for row in rows:
+        goal = GOALS.get(row["condition"])
+        if goal is None:
+            continue
+        met = abs(row["delta_qe_pp"]) <= goal[0] and abs(row["delta_pe_deg"]) <= goal[1]
+        lines.append(f"{row['subject']} {row['condition']}: ΔQE {row['delta_qe_pp']:+.2f} pp (goal ±{goal[0]:g}), "
+                     f"ΔPE {row['delta_pe_deg']:+.2f}° (goal ±{goal[1]:g}): {'met' if met else 'MISSED'}")
+    return lines
+
+
+def _fmt(value) -> str:
+    if value is None or value == "":
+        return ""
+    if isinstance(value, float):
+        return f"{value:.3f}"
+    return str(value)
+
+
+def write_summary_csv(path: str | os.PathLike, rows: list[dict]) -> Path:
+    """summary.csv (columns :data:`COLUMNS`, empty where a value does not apply), written atomically."""
+    buffer = io.StringIO()
+    writer = csv.DictWriter(buffer, fieldnames=COLUMNS, lineterminator="\n")
+    writer.writeheader()
+    for row in rows:
+        writer.writerow({column: _fmt(row.get(column)) for column in COLUMNS})
+    return write_text_atomic(path, buffer.getvalue())
+
+
+def read_summary_csv(path: str | os.PathLike) -> list[dict]:
+    """summary.csv back as rows (numbers as floats, empty cells as None)."""
+    rows = []
+    with open(path, newline="") as handle:
+        for raw in csv.DictReader(handle):
+            row = {}
+            for key, value in raw.items():
+                if key in ("subject", "condition", "head_sha256"):
+                    row[key] = value
+                else:
+                    row[key] = float(value) if value != "" else None
+            rows.append(row)
+    return rows
+
+
+def figure7(rows: list[dict], path: str | os.PathLike) -> Path:
+    """QE (%) and PE (deg) per subject and condition, side by side (the paper's Figure 7)."""
+    import matplotlib  # noqa: PLC0415
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt  # noqa: PLC0415
+
+    subjects = list(dict.fromkeys(r["subject"] for r in rows))
+    conditions = list(dict.fromkeys(r["condition"] for r in rows))
+    width = 0.8 / len(conditions)
+    fig, axes = plt.subplots(1, 2, figsize=(4.0 + 1.3 * len(subjects), 3.6))
+    for ax, (key, label) in zip(axes, (("qe_percent", "quadrant errors (%)"), ("pe_deg", "local polar RMS error (deg)"))):
+        for k, condition in enumerate(conditions):
+            values = [next((r[key] for r in rows if r["subject"] == s and r["condition"] == condition), np.nan)
+                      for s in subjects]
+            ax.bar(np.arange(len(subjects)) + (k - (len(conditions) - 1) / 2) * width, values, width,
+                   label=condition)
+        ax.set_xticks(np.arange(len(subjects)), subjects)
+        ax.set_ylabel(label)
+        ax.grid(axis="y", alpha=0.3)
+    axes[0].legend(fontsize=7)
+    fig.suptitle("predicted sagittal-plane localisation (baumgartner2014, reference as template)", fontsize=9)
+    fig.tight_layout()
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=120, format="png")
+    plt.close(fig)
+    return Path(path)
+
+
+def figure6(results: str | os.PathLike, subjects: list[str], conditions: dict[str, list[str]],
+            path: str | os.PathLike) -> Path:
+    """Per subject: the target scan coloured by its distance to the aligned PPM on the paper's scale (<= 1 mm
+    red, ~3.5 mm green, >= 5 mm blue), and the histogram of the distances of every condition with medians
+    (the paper's Figure 6)."""
+    import matplotlib  # noqa: PLC0415
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt  # noqa: PLC0415
+    import trimesh  # noqa: PLC0415
+
+    from ppm.render import render_distance_map  # noqa: PLC0415
+
+    results = Path(results)
+    fig, axes = plt.subplots(len(subjects), 2, figsize=(11, 3.3 * len(subjects)), squeeze=False,
+                             gridspec_kw={"width_ratios": [2.0, 1.0]})
+    with tempfile.TemporaryDirectory() as tmp:
+        for row, subject in enumerate(subjects):
+            data = {c: np.load(results / subject / "evaluation" / c / "distances.npz")
+                    for c in conditions[subject]}
+            target = trimesh.load(results / subject / "target" / "pinna_target.ply", process=False, force="mesh")
+            forward = data["ppm"]["target_to_model"]
+            picture = Path(tmp) / f"{subject}.png"
+            if len(target.vertices) == len(forward):
+                render_distance_map(target.vertices, target.faces, forward, picture, f"{subject}: scan -> PPM")
+            else:  # the prepared target dropped outliers: show its points
+                render_distance_map(data["ppm"]["target_points_mm"], None, forward, picture, f"{subject}: scan -> PPM")
+            axes[row, 0].imshow(plt.imread(picture))
+            axes[row, 0].axis("off")
+            ax = axes[row, 1]
+            bins = np.linspace(0.0, 5.0, 51)
+            for condition, values in data.items():
+                d = values["target_to_model"]
+                ax.hist(np.clip(d, 0, 5.0), bins=bins, weights=np.full(len(d), 100.0 / len(d)), histtype="step",
+                        lw=1.2, label=f"{condition}: median {np.median(d):.2f} mm")
+            ax.axvline(np.median(forward), color="k", ls="--", lw=0.8)
+            ax.set_xlabel("distance scan -> pinna (mm; last bin >= 5)")
+            ax.set_ylabel("scan points (%)")
+            ax.legend(fontsize=7)
+    fig.tight_layout()
+    with atomic_path(path) as tmp_png:
+        fig.savefig(tmp_png, dpi=100, format="png")
+    plt.close(fig)
+    return Path(path)
+
+
+def copy_sofa(hrtfs: dict[tuple[str, str], str], folder: str | os.PathLike) -> list[Path]:
+    """The solved left-ear HRTFs (SimpleFreeFieldHRTF) as ``<subject>_<condition>_left_HRTF.sofa``."""
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    written = []
+    for (subject, condition), source in sorted(hrtfs.items()):
+        target = folder / f"{subject}_{condition}_left_HRTF.sofa"
+        with atomic_path(target) as tmp:
+            shutil.copyfile(source, tmp)
+        written.append(target)
+    return written
+
+
+def _table_html(rows: list[dict], columns: tuple[str, ...]) -> str:
+    head = "".join(f"<th>{html.escape(c)}</th>" for c in columns)
+    body = "".join("<tr>" + "".join(f"<td>{html.escape(_fmt(r.get(c)))}</td>" for c in columns) + "</tr>"
+                   for r in rows)
+    return f"<table><tr>{head}</tr>{body}</table>"
+
+
+def _table_markdown(rows: list[dict], columns: tuple[str, ...]) -> str:
+    lines = ["| " + " | ".join(columns) + " |", "|" + "---|" * len(columns)]
+    lines += ["| " + " | ".join(_fmt(r.get(c)) for c in columns) + " |" for r in rows]
+    return "\n".join(lines)
+
+
+SHORT_COLUMNS = ("subject", "condition", "qe_percent", "pe_deg", "delta_qe_pp", "delta_pe_deg", "distance_median_mm",
+                 "distance_p95_mm", "reverse_median_mm", "solve_cpu_hours")
+
+
+def write_html(path: str | os.PathLike, rows: list[dict], figure6_path: Path, figure7_path: Path,
+               frequency_note: str, configfiles: list[str]) -> Path:
+    """The evaluation's self-contained HTML page (figures embedded)."""
+    from .subject import STYLE, _image  # noqa: PLC0415
+
+    goals = goal_lines(rows)
+    parts = [f"<html><head><meta charset='utf-8'><title>PPM evaluation</title><style>{STYLE}</style></head><body>",
+             "<h1>PPM evaluation: HRTFs of heads with the aligned PPM pinna vs the reference</h1>",
+             "<p>Per subject the left ear of each condition's head was solved (NumCalc, " + html.escape(frequency_note)
+             + ") on the reference SOFA's directions; the right ear is the reference's. baumgartner2014 with the "
+             "reference as template; S calibrated so that the reference reaches 8 % quadrant errors.</p>",
+             "<ul>" + "".join(f"<li><b>{html.escape(c)}</b>: {html.escape(t)}</li>" for c, t in CONDITION_LABELS.items())
+             + "</ul>",
+             "<h2>Goals</h2><ul>" + "".join(f"<li>{html.escape(g)}</li>" for g in goals) + "</ul>",
+             "<h2>Figure 7: predicted localisation</h2>", _image(figure7_path),
+             "<h2>Figure 6: scan to pinna distances</h2>", _image(figure6_path),
+             "<h2>Summary</h2>", _table_html(rows, COLUMNS),
+             f"<p>Configuration: {html.escape(' '.join(configfiles) or 'config/config.yaml')}</p></body></html>"]
+    return write_text_atomic(path, "\n".join(parts) + "\n")
+
+
+def write_readme(path: str | os.PathLike, rows: list[dict], frequency_note: str, configfiles: list[str],
+                 wall_clock_hours: float) -> Path:
+    """The evaluation folder's README: what was run, by which command, at what cost, and the numbers."""
+    command = "bash scripts/run.sh" + "".join(f" --configfile {c}" for c in configfiles)
+    cpu = sum(r.get("solve_cpu_hours") or 0.0 for r in rows)
+    text = f"""# Evaluation: PPM heads vs reference HRTFs
+
+Made by `{command}` (Snakemake; rules/evaluation.smk). Every number below is in `summary.csv`.
+
+- Conditions: {'; '.join(f'`{c}` = {t}' for c, t in CONDITION_LABELS.items())}.
+- Solved: the left ear of each condition's head (NumCalc, {frequency_note}) on the reference SOFA's directions;
+  the right ear is the reference's (rebuilt at the same frequencies). S is calibrated per subject so that the
+  reference reaches 8 % quadrant errors; every condition is predicted with that S and the reference as template.
+- Distances (mm): `distance_*` every scan point to the condition's pinna (the paper's one-sided Hausdorff
+  distance); `reverse_*` every pinna vertex over the scanned region to the scan.
+- Cost: {cpu:.2f} CPU hours of NumCalc (from the solver statuses kept with every step in `steps/`);
+  {wall_clock_hours:.2f} h wall-clock of the jobs of the run that wrote this folder (Snakemake benchmark files;
+  restored steps take seconds).
+- `steps/` keeps every solved step with the SHA-256 of its project: a fresh clone restores them instead of solving,
+  as long as it rebuilds the same heads (`head_sha256` in the summary).
+
+## Goals
+
+{chr(10).join(f'- {g}' for g in goal_lines(rows))}
+
+## Results
+
+{_table_markdown(rows, SHORT_COLUMNS)}
+
+Files: `summary.csv`, `report.html`, `figure6_distances.png`, `figure7_qe_pe.png`,
+`sofa/<subject>_<condition>_left_HRTF.sofa` (the solved left ear, SimpleFreeFieldHRTF).
+"""
+    return write_text_atomic(path, text)

@@ -1,0 +1,51 @@
+# The dataset evaluation (config evaluation.folder): per subject and condition the target <-> model distances
+# of the condition's pinna; then summary.csv, the left-ear HRTFs of every condition, the paper's Figures 6 and
+# 7, an HTML report and a README, all in the evaluation folder (kept in the repository).
+
+
+rule condition_distances:
+    input:
+        target="results/{subject}/target/pinna_target.ply",
+        pinna=lambda wc: condition_pinna(wc.subject, wc.condition),
+    output:
+        summary="results/{subject}/evaluation/{condition}/distances.json",
+        points="results/{subject}/evaluation/{condition}/distances.npz",
+    log:
+        "logs/evaluation/condition_distances/{subject}_{condition}.log",
+    benchmark:
+        "benchmarks/timings/evaluation/condition_distances/{subject}_{condition}.tsv"
+    wildcard_constraints:
+        condition="ppm|own_pinna|default_ppm",
+    threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=10,
+    script:
+        "../workflow/scripts/condition_distances.py"
+
+
+if EVALUATION_FOLDER:
+
+    rule evaluation_report:
+        input:
+            unpack(evaluation_report_inputs),
+        output:
+            summary=f"{EVALUATION_FOLDER}/summary.csv",
+            html=f"{EVALUATION_FOLDER}/report.html",
+            readme=f"{EVALUATION_FOLDER}/README.md",
+            figure6=f"{EVALUATION_FOLDER}/figure6_distances.png",
+            figure7=f"{EVALUATION_FOLDER}/figure7_qe_pe.png",
+            sofa=directory(f"{EVALUATION_FOLDER}/sofa"),
+        log:
+            "logs/evaluation/evaluation_report.log",
+        params:
+            subjects=SUBJECTS,
+            conditions={s: evaluation_conditions(s) for s in SUBJECTS},
+            store=config["hrtf"]["step_store"],
+            configfiles=EVALUATION_CONFIGFILES,
+        threads: 1
+        resources:
+            mem_mb=3000,
+            runtime=20,
+        script:
+            "../workflow/scripts/evaluation_report.py"

@@ -1,0 +1,34 @@
+"""Rule evaluation_report: summary.csv, the left-ear HRTFs, Figures 6 and 7, the HTML page and the README of the
+dataset evaluation (config evaluation.folder)."""
+import json
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(snakemake.scriptdir)))  # noqa: F821
+from _logging import configure_logging  # noqa: E402
+
+configure_logging(snakemake)  # noqa: F821
+
+from mesh2hrtf_io.frequency_sets import describe_set  # noqa: E402
+from reporting.cost import subjects_timings  # noqa: E402
+from reporting.evaluation import (copy_sofa, evaluation_rows, figure6, figure7, write_html, write_readme,  # noqa: E402
+                                  write_summary_csv)
+
+inputs, out, params = snakemake.input, snakemake.output, snakemake.params  # noqa: F821
+subjects, conditions = list(params.subjects), dict(params.conditions)
+pairs = [(s, c) for s in subjects for c in conditions[s]]
+heads = {(s, c): inputs[f"{s}_{c}_head"] for s, c in pairs}
+steps = {(s, c): list(inputs[f"{s}_{c}_steps"]) for s, c in pairs}
+steps = {key: [value] if isinstance(value, str) else value for key, value in steps.items()}
+rows = evaluation_rows("results", subjects, conditions, heads, steps, params.store or None)
+frequencies = json.loads(Path(inputs[f"{subjects[0]}_localisation"]).read_text())["frequency_set"]["frequencies_hz"]
+frequency_note = describe_set(frequencies)
+write_summary_csv(out.summary, rows)
+copy_sofa({(s, c): inputs[f"{s}_{c}_hrtf"] for s, c in pairs}, out.sofa)
+figure7(rows, out.figure7)
+figure6(Path("results"), subjects, conditions, out.figure6)
+configfiles = list(params.configfiles)
+write_html(out.html, rows, Path(out.figure6), Path(out.figure7), frequency_note, configfiles)
+timings = subjects_timings("benchmarks/timings", subjects)
+wall_clock_h = sum(t.seconds for jobs in timings.values() for t in jobs) / 3600.0
+write_readme(out.readme, rows, frequency_note, configfiles, wall_clock_h)

@@ -245,3 +245,45 @@ def test_localisation_rule_compares_ppm_and_reference_hrtfs(tmp_path, sonicom):
     assert summary["frequency_set"]["description"].startswith("40 frequencies, 150 Hz to 24000 Hz")
     for name in ("qe_pe_bars.png", "reference_matrix.png", "ppm_matrix.png"):
         assert (work / "results/S1/localisation" / name).read_bytes()[:4] == b"\x89PNG"
+
+
+def test_one_ear_on_the_reference_directions_is_collected_and_completed_by_the_reference(tmp_path, sonicom):
+    """The paper's set-up on a sphere 'head': the left ear solved on the reference SOFA's 793 directions at
+    the 40-frequency evaluation set (embedded solver), collected into one-ear SOFA files (HRTF and HRIR
+    rebuilt at the reference's 48 kHz, 320 taps), and predicted with the reference's right ear."""
+    import json
+
+    import sofar
+    import yaml
+
+    work = _copy_workflow(tmp_path)
+    subject = tmp_path / "data" / "S1"
+    subject.mkdir(parents=True)
+    head = trimesh.creation.icosphere(subdivisions=2, radius=87.5)
+    head.export(subject / "head_graded_left.ply")
+    head.export(subject / "pinna_left_crop.ply")
+    shutil.copy(sonicom / "P039" / "hrir_mesh2hrtf_48k.sofa", subject / "hrir_mesh2hrtf_48k.sofa")
+    config = yaml.safe_load((work / "config" / "config.yaml").read_text())
+    config["data_root"] = str(tmp_path / "data")
+    config["hrtf"].update(enabled=True, solver="embedded", ears="left", grid="reference_sofa",
+                          frequencies_hz="evaluation", step_store="store")
+    path = work / "config" / "test_one_ear.yaml"
+    path.write_text(yaml.safe_dump(config))
+    # the sphere stands in for the PPM head: the localisation compares it with the reference
+    (work / "results/S1/remesh").mkdir(parents=True)
+    head.export(work / "results/S1/remesh/head.ply")
+    target = "results/S1/localisation/qe_pe.json"
+    done = _run([target, "--cores", "2", "--configfile", str(path), "--allowed-rules", "export_project",
+                 "solve_embedded", "collect_sofa", "localisation"], work, timeout=1500)
+    assert done.returncode == 0, (done.stdout + done.stderr)[-3000:]
+    hrtf = sofar.read_sofa(str(work / "results/S1/hrtf/ppm/HRTF.sofa"), verify=True)
+    assert hrtf.Data_Real.shape == (793, 1, 40)
+    hrir = sofar.read_sofa(str(work / "results/S1/hrtf/ppm/HRIR.sofa"), verify=True)
+    assert hrir.Data_IR.shape == (793, 1, 320) and float(np.ravel(hrir.Data_SamplingRate)[0]) == 48000.0
+    reference = sofar.read_sofa(str(subject / "hrir_mesh2hrtf_48k.sofa"), verify=False)
+    assert np.allclose(hrtf.SourcePosition[:, :2] % 360, reference.SourcePosition[:, :2] % 360, atol=1e-6)
+    summary = json.loads((work / target).read_text())
+    assert summary["solved_ear"] == "left"
+    assert summary["conditions"]["reference"]["qe_percent"] == pytest.approx(8.0, abs=0.01)
+    assert summary["conditions"]["ppm"]["qe_percent"] > summary["conditions"]["reference"]["qe_percent"] + 5.0
+    assert len(list((work / "store/S1/ppm/source_1").glob("step_*.npz"))) == 40

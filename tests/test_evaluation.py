@@ -1,0 +1,111 @@
+"""The dataset evaluation: distances between a scan and a condition's pinna, the summary rows and the files
+kept in the repository (evaluation/sonicom), which must parse and agree with each other."""
+from __future__ import annotations
+
+import json
+import re
+
+import numpy as np
+import pytest
+import trimesh
+
+from reporting.evaluation import (COLUMNS, GOALS, condition_distances, evaluation_rows, goal_lines, read_summary_csv,
+                                  write_summary_csv)
+
+from conftest import ROOT
+
+COMMITTED = ROOT / "evaluation" / "sonicom"
+
+
+def test_distances_of_a_pinna_offset_along_its_normals_are_the_offset(tmp_path, sonicom):
+    """The P143 scan surface moved 0.4 mm along its vertex normals: every scan point lies ~0.4 mm from it and
+    every vertex over the scanned region ~0.4 mm from the scan; vertices near the crop's edge do not count."""
+    scan = trimesh.load(sonicom / "P143" / "pinna_left_crop.ply", process=False, force="mesh")
+    scan.export(tmp_path / "target.ply")
+    moved = trimesh.Trimesh(scan.vertices + 0.4 * scan.vertex_normals, scan.faces, process=False)
+    moved.export(tmp_path / "pinna.ply")
+    summary = condition_distances(tmp_path / "target.ply", tmp_path / "pinna.ply", tmp_path / "d.json",
+                                  tmp_path / "d.npz")
+    assert summary["target_to_model"]["median_mm"] == pytest.approx(0.4, abs=0.03)
+    assert summary["model_to_target"]["median_mm"] == pytest.approx(0.4, abs=0.03)
+    assert 0.5 < summary["model_vertices_counted"] / summary["model_vertices"] < 1.0
+    points = np.load(tmp_path / "d.npz")
+    assert len(points["target_to_model"]) == summary["target_to_model"]["n_points"]
+    assert json.loads((tmp_path / "d.json").read_text()) == summary
+    # a pinna beside the scan (moved 200 mm to the front) has no vertex over the scanned region: named
+    trimesh.Trimesh(scan.vertices + [200.0, 0.0, 0.0], scan.faces, process=False).export(tmp_path / "far.ply")
+    with pytest.raises(ValueError, match="far.ply: no vertex of the pinna lies over the scanned region"):
+        condition_distances(tmp_path / "target.ply", tmp_path / "far.ply", tmp_path / "e.json", tmp_path / "e.npz")
+    assert not (tmp_path / "e.json").exists() and not (tmp_path / "e.npz").exists()
+
+
+def test_rows_carry_deltas_against_the_reference_and_goals_are_judged(tmp_path):
+    """Rows from a subject's localisation summary and a condition's distances; the CSV round-trips."""
+    from mesh2hrtf_io import sagittal_grid, write_project
+
+    subject = tmp_path / "results" / "S1"
+    (subject / "localisation").mkdir(parents=True)
+    conditions = {"reference": {"qe_percent": 8.0, "pe_deg": 30.0, "eb_deg": 1.0},
+                  "ppm": {"qe_percent": 9.5, "pe_deg": 33.0, "eb_deg": 2.0},
+                  "own_pinna": {"qe_percent": 8.4, "pe_deg": 30.5, "eb_deg": 1.0}}
+    (subject / "localisation" / "qe_pe.json").write_text(json.dumps(
+        {"sensitivity_db": 0.61, "conditions": conditions, "frequency_set": {"frequencies_hz": [1000.0, 2000.0]}}))
+    steps = {}
+    for condition in ("ppm", "own_pinna"):
+        (subject / "evaluation" / condition).mkdir(parents=True)
+        (subject / "evaluation" / condition / "distances.json").write_text(json.dumps(
+            {"target_to_model": {"median_mm": 0.3, "p95_mm": 0.9}, "model_to_target": {"median_mm": 0.2, "p95_mm": 0.7}}))
+        sphere = trimesh.creation.icosphere(subdivisions=1, radius=0.09)
+        write_project(subject / "hrtf" / condition / "project", sphere.vertices * 1000, sphere.faces,
+                      {"left": np.array([0])}, [sagittal_grid(polar_step_deg=30.0)], [1000.0, 2000.0],
+                      source_type="Left ear")
+        status = subject / "hrtf" / condition / "steps" / "source_1" / "steps_1-2.json"
+        status.parent.mkdir(parents=True)
+        status.write_text(json.dumps({"steps": [{"step": 1, "attempts": [{"seconds": 1800.0}]},
+                                                {"step": 2, "attempts": [{"seconds": 1000.0}, {"seconds": 800.0}]}]}))
+        steps["S1", condition] = [str(status)]
+        (tmp_path / f"{condition}.ply").write_bytes(b"head")
+    heads = {("S1", c): str(tmp_path / f"{c}.ply") for c in ("ppm", "own_pinna")}
+    rows = evaluation_rows(tmp_path / "results", ["S1"], {"S1": ["ppm", "own_pinna"]}, heads, steps)
+    assert [r["condition"] for r in rows] == ["reference", "ppm", "own_pinna"]
+    ppm = rows[1]
+    assert ppm["delta_qe_pp"] == pytest.approx(1.5) and ppm["delta_pe_deg"] == pytest.approx(3.0)
+    assert ppm["solve_cpu_hours"] == pytest.approx(1.0) and ppm["steps_solved_here"] == 2
+    assert ppm["n_elements"] == 80 and ppm["n_frequencies"] == 2
+    lines = goal_lines(rows)
+    assert lines[0].startswith("S1 ppm") and lines[0].endswith("MISSED")  # ΔPE 3.0 > 2
+    assert lines[1].startswith("S1 own_pinna") and lines[1].endswith("met")
+    write_summary_csv(tmp_path / "summary.csv", rows)
+    back = read_summary_csv(tmp_path / "summary.csv")
+    assert back[1]["delta_pe_deg"] == pytest.approx(3.0) and back[0]["distance_median_mm"] is None
+
+
+@pytest.mark.skipif(not (COMMITTED / "summary.csv").is_file(), reason="the SONICOM evaluation is not committed yet")
+def test_the_committed_sonicom_evaluation_parses_and_its_readme_follows_the_summary():
+    """evaluation/sonicom: every subject has the reference and the PPM, the reference sits at the calibration
+    (8 % QE), deltas are differences from it, every solved condition has its left-ear SOFA, and the README
+    and the top-level README show the numbers of summary.csv."""
+    import sofar
+
+    rows = read_summary_csv(COMMITTED / "summary.csv")
+    assert rows and set(rows[0]) == set(COLUMNS)
+    readme = (COMMITTED / "README.md").read_text()
+    top = (ROOT / "README.md").read_text()
+    for subject in sorted({r["subject"] for r in rows}):
+        mine = {r["condition"]: r for r in rows if r["subject"] == subject}
+        assert {"reference", "ppm"} <= set(mine)
+        assert mine["reference"]["qe_percent"] == pytest.approx(8.0, abs=0.05)
+        for condition, row in mine.items():
+            assert row["delta_qe_pp"] == pytest.approx(row["qe_percent"] - mine["reference"]["qe_percent"], abs=2e-3)
+            if condition == "reference":
+                continue
+            assert row["n_frequencies"] == 40 and row["solve_cpu_hours"] > 0
+            assert 0 < row["distance_median_mm"] < row["distance_p95_mm"]
+            sofa = sofar.read_sofa(str(COMMITTED / "sofa" / f"{subject}_{condition}_left_HRTF.sofa"), verify=False)
+            assert sofa.Data_Real.shape == (793, 1, 40)
+            line = f"| {subject} | {condition} | {row['qe_percent']:.3f} | {row['pe_deg']:.3f} |"
+            assert line in readme and line in top, line
+    for line in goal_lines(rows):
+        assert line in readme
+    assert set(GOALS) <= {"ppm", "own_pinna"}
+    assert re.search(r"Made by `bash scripts/run.sh --configfile \S+`", readme)

@@ -45,7 +45,7 @@ def solve_project_embedded(folder: str | os.PathLike, steps: list[int] | None = 
              "frequency (all sources of a frequency share one factorised matrix); %d source step(s) at %d frequencies to "
              "solve (%.1f min)", len(project.vertices_m), len(project.faces), len(points), cost.seconds_per_frequency,
              cost.memory_gb_per_frequency, total, len(steps_todo), len(steps_todo) * cost.seconds_per_frequency / 60)
-    measured = []
+    measured, per_frequency = [], []
     progress = Progress(total, "embedded solver, source steps", log)
     for step in steps_todo:
         # every source missing this step is solved with the same factorised system matrix
@@ -60,8 +60,11 @@ def solve_project_embedded(folder: str | os.PathLike, steps: list[int] | None = 
                                      f"Mesh2HRTF {project.parameters.get('Mesh2HRTF_Version', '1.2.4')}")
         elapsed = time.perf_counter() - start
         measured += [elapsed / len(sources)] * len(sources)
+        per_frequency.append(elapsed)
         progress.step(f"step {step}, {frequency:.0f} Hz, {' + '.join(source.folder.name for source in sources)}: "
                       f"{elapsed:.1f} s", units=len(sources))
     return {"steps_solved": progress.done, "estimated_seconds_per_step": cost.seconds_per_frequency,
             "estimated_memory_gb": cost.memory_gb_per_frequency,
-            "measured_seconds_per_step": float(np.mean(measured)) if measured else None}
+            "measured_seconds_per_step": float(np.mean(measured)) if measured else None,
+            # every source of a frequency at once; the first includes numba's compilation when it is the process's first
+            "seconds_per_frequency": [round(value, 3) for value in per_frequency]}

@@ -75,25 +75,43 @@ def solve_numcalc_steps(project: str | os.PathLike, source: int, steps, status_p
     write_text_atomic(status_path, json.dumps({"steps": statuses}, indent=2) + "\n")
 
 
-def solve_embedded(project: str | os.PathLike, status_path: str | os.PathLike,
-                   store: str | os.PathLike | None = None) -> None:
-    """Solve every missing step with the embedded solver and write a summary JSON; with a ``store``, stored
-    steps of this project are restored first and solved ones copied there."""
+def solve_embedded(projects: dict[str, str | os.PathLike], status_path: str | os.PathLike,
+                   stores: dict[str, str | os.PathLike | None] | None = None, threads: int | None = None) -> None:
+    """Solve every missing step of several projects (e.g. a subject's reference and PPM heads, by name) with
+    the embedded solver in this one process, so that numba compiles bempp-cl's kernels once for all of them;
+    write a summary JSON per project (steps solved and restored, seconds per step) and the time to the first
+    solved step (kernel compilation). With ``stores`` (name -> folder), stored steps are restored first and
+    solved ones copied there. ``threads``: numba threads for the assembly (default: numba's)."""
+    import time  # noqa: PLC0415
+
     from .embedded import solve_project_embedded  # noqa: PLC0415
     from .step_store import project_fingerprint, restore_step, save_step  # noqa: PLC0415
 
-    solved = read_project(project)
-    steps = range(1, len(solved.frequencies_hz) + 1)
-    fingerprints = ({source: project_fingerprint(project, source) for source in range(1, len(solved.sources) + 1)}
-                    if store else {})
-    restored = sum(restore_step(project, source, step, store, fingerprint)
-                   for source, fingerprint in fingerprints.items() for step in steps)
-    summary = solve_project_embedded(project)
-    summary["steps_restored"] = restored
-    for source, fingerprint in fingerprints.items():
-        for step in steps:
-            save_step(project, source, step, store, fingerprint)
-    write_text_atomic(status_path, json.dumps(summary, indent=2) + "\n")
+    if threads:
+        import numba  # noqa: PLC0415
+
+        numba.set_num_threads(max(1, min(int(threads), numba.config.NUMBA_NUM_THREADS)))
+    stores = stores or {}
+    start = time.perf_counter()
+    summaries = {}
+    for name, project in projects.items():
+        store = stores.get(name)
+        solved = read_project(project)
+        steps = range(1, len(solved.frequencies_hz) + 1)
+        fingerprints = ({source: project_fingerprint(project, source) for source in range(1, len(solved.sources) + 1)}
+                        if store else {})
+        restored = sum(restore_step(project, source, step, store, fingerprint)
+                       for source, fingerprint in fingerprints.items() for step in steps)
+        summary = solve_project_embedded(project)
+        summary["steps_restored"] = restored
+        for source, fingerprint in fingerprints.items():
+            for step in steps:
+                save_step(project, source, step, store, fingerprint,
+                          {"solver": "embedded", "seconds": summary["measured_seconds_per_step"] or 0.0})
+        summaries[name] = {"project": str(project), **summary}
+    write_text_atomic(status_path, json.dumps({"projects": summaries,
+                                               "seconds": round(time.perf_counter() - start, 2),
+                                               "threads": threads}, indent=2) + "\n")
 
 
 def collect(project: str | os.PathLike, hrtf_path: str | os.PathLike, hrir_path: str | os.PathLike,

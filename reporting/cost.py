@@ -79,17 +79,32 @@ def project_elements(project: str | os.PathLike) -> int | None:
 
 def solve_costs(results: str | os.PathLike, timings: list[StageTiming]) -> list[dict]:
     """Per head variant with an exported project under ``results`` (a subject's folder, named after it):
-    solver, elements, frequencies, solve seconds (all its solver jobs), seconds per frequency, peak memory."""
+    solver, elements, frequencies, solve seconds, seconds per frequency (both ears), peak memory. Embedded
+    solves (one job per subject for all its heads) are read from their status (``hrtf/embedded.json``), which
+    keeps each head's seconds per frequency; the first frequency of the job, which includes numba's
+    compilation, is left out of the per-frequency figure. NumCalc solves from the step jobs' benchmarks."""
     subject = Path(results).name
+    embedded_path = Path(results) / "hrtf" / "embedded.json"
+    embedded = json.loads(embedded_path.read_text()).get("projects", {}) if embedded_path.is_file() else {}
+    embedded_rss = [t.max_rss_mb for t in timings if t.rule == "solve_embedded" and t.max_rss_mb is not None]
     rows = []
-    for variant in ("reference", "ppm"):
+    for variant in ("reference", "ppm", "own_pinna", "default_ppm"):
         project = Path(results) / "hrtf" / variant / "project"
         if not project.is_dir():
             continue
         parameters = json.loads((project / "parameters.json").read_text()) if (project / "parameters.json").is_file() else {}
         frequencies = parameters.get("frequencies") or []
+        if variant in embedded:
+            times = embedded[variant].get("seconds_per_frequency", [])
+            first_of_job = variant == next(iter(embedded))
+            steady = times[1:] if first_of_job and len(times) > 1 else times
+            rows.append({"variant": variant, "solver": "embedded", "elements": project_elements(project),
+                         "frequencies": len(frequencies), "solve_seconds": round(sum(times), 1),
+                         "seconds_per_frequency": round(sum(steady) / len(steady), 2) if steady else None,
+                         "max_rss_mb": max(embedded_rss) if embedded_rss else None})
+            continue
         jobs = [t for t in timings if t.rule.startswith("solve_") and _of_job(t.job, f"{subject}_{variant}")]
-        solver = "embedded" if any(t.rule == "solve_embedded" for t in jobs) else ("NumCalc" if jobs else "given")
+        solver = "NumCalc" if jobs else "given"
         seconds = sum(t.seconds for t in jobs)
         rss = [t.max_rss_mb for t in jobs if t.max_rss_mb is not None]
         rows.append({"variant": variant, "solver": solver, "elements": project_elements(project),

@@ -154,7 +154,7 @@ def solved_steps(wildcards):
     """What collect_sofa waits for: every NumCalc step job, or the one embedded-solver job."""
     base = f"results/{wildcards.subject}/hrtf/{wildcards.variant}/steps"
     if config["hrtf"]["solver"] == "embedded":
-        return [f"{base}/embedded.json"]
+        return [f"results/{wildcards.subject}/hrtf/embedded.json"]
     n_steps, per_job = len(hrtf_frequencies()), config["hrtf"]["steps_per_job"]
     ranges = [(k, min(k + per_job - 1, n_steps)) for k in range(1, n_steps + 1, per_job)]
     return [f"{base}/source_{s}/steps_{a}-{b}.json" for s in hrtf_sources() for a, b in ranges]
@@ -191,16 +191,38 @@ def numcalc_step_runtime_min(wildcards, input, attempt):
     return max(10, int(round(2 * sum(c.seconds for c in costs) / 60 * (1 + 0.5 * (attempt - 1)))))
 
 
+def solved_variants(subject: str) -> list[str]:
+    """The heads whose HRTFs are solved for a subject: the reference head when the dataset has no reference
+    HRIRs (config localisation.reference_sofa), and every evaluation condition (the PPM head first)."""
+    given = (DATA_ROOT / subject / config["localisation"]["reference_sofa"]).is_file()
+    return ([] if given else ["reference"]) + evaluation_conditions(subject)
+
+
+def embedded_threads(wildcards) -> int:
+    """Cores of one embedded-solver job (one per subject): the run's cores (--cores) shared by the subjects,
+    at least 1."""
+    from snakemake.exceptions import WorkflowError
+
+    try:
+        cores = int(workflow.cores or 1)
+    except (WorkflowError, TypeError, ValueError):  # --cores not given (e.g. --unlock, a cluster executor)
+        cores = 1
+    return max(1, cores // max(1, len(SUBJECTS)))
+
+
 def embedded_mem_mb(wildcards, input):
-    """Memory of the embedded solver from its dense-operator model."""
+    """Memory of the embedded solver (its largest head, one at a time) from its dense-operator model."""
     from mesh2hrtf_io.bem import estimate_cost
     from mesh2hrtf_io.project_reader import read_project
 
-    if not (Path(input.project) / "parameters.json").is_file():  # not exported yet (dry run)
-        return 4096
-    project = read_project(input.project)
-    cost = estimate_cost(len(project.vertices_m), len(project.faces), len(project.evaluation_points_m))
-    return int(1024 * cost.memory_gb_per_frequency * 1.3) + 1500
+    largest = 0.0
+    for project in input.projects:
+        if not (Path(project) / "parameters.json").is_file():  # not exported yet (dry run)
+            return 4096
+        solved = read_project(project)
+        cost = estimate_cost(len(solved.vertices_m), len(solved.faces), len(solved.evaluation_points_m))
+        largest = max(largest, cost.memory_gb_per_frequency)
+    return int(1024 * largest * 1.3) + 1500
 
 
 def reference_sofa(wildcards):

@@ -1,5 +1,6 @@
 # HRTFs of head meshes: Mesh2HRTF project export, solving (NumCalc one job per ear and range of
-# frequency steps, hrtf.steps_per_job long, or the embedded solver one job per project), and
+# frequency steps, hrtf.steps_per_job long, or the embedded solver one job per subject for all its heads, so
+# that numba compiles bempp-cl's kernels once), and
 # collection into SOFA files.
 # Variants: "reference" = the dataset's ground-truth head (<subject>/head_graded_left.ply); "ppm" = the head
 # with the aligned PPM stitched in; the controls "own_pinna" and "default_ppm" (rules/controls.smk).
@@ -48,16 +49,18 @@ rule solve_numcalc_step:
 
 rule solve_embedded:
     input:
-        project="results/{subject}/hrtf/{variant}/project",
+        projects=lambda wc: [f"results/{wc.subject}/hrtf/{v}/project" for v in solved_variants(wc.subject)],
     output:
-        status="results/{subject}/hrtf/{variant}/steps/embedded.json",
+        status="results/{subject}/hrtf/embedded.json",
     log:
-        "logs/hrtf/solve_embedded/{subject}_{variant}.log",
+        "logs/hrtf/solve_embedded/{subject}.log",
     benchmark:
-        "benchmarks/timings/hrtf/solve_embedded/{subject}_{variant}.tsv"
+        "benchmarks/timings/hrtf/solve_embedded/{subject}.tsv"
     params:
-        store=step_store,
-    threads: 2
+        variants=lambda wc: solved_variants(wc.subject),
+        stores=lambda wc: {v: step_store(type("Wildcards", (), {"subject": wc.subject, "variant": v}))
+                           for v in solved_variants(wc.subject)},
+    threads: embedded_threads
     resources:
         mem_mb=embedded_mem_mb,
         runtime=lambda wc: config["hrtf"]["step_runtime_min"] * len(hrtf_frequencies()) * 2,

@@ -125,15 +125,24 @@ def test_dataset_report_lists_parameter_ranges_and_localisation(results, tmp_pat
 
 
 def test_solve_cost_of_a_subject_with_underscores_in_its_name(tmp_path):
-    """Solver jobs are matched by '<subject>_<variant>', not by splitting the name on underscores."""
+    """NumCalc step jobs are matched by '<subject>_<variant>', not by splitting the name on underscores; the
+    embedded solver's per-subject status gives each head's seconds, the job's first frequency (numba's
+    compilation) left out of the per-frequency figure."""
     results = tmp_path / "results" / "P_01"
     for variant in ("reference", "ppm"):
         project = results / "hrtf" / variant / "project"
         (project / "ObjectMeshes" / "Reference").mkdir(parents=True)
         (project / "ObjectMeshes" / "Reference" / "Elements.txt").write_text("2000\n")
         (project / "parameters.json").write_text(json.dumps({"frequencies": [1000.0, 2000.0]}))
-    _benchmark(tmp_path / "timings" / "hrtf" / "solve_embedded" / "P_01_ppm.tsv", 30.0, 900.0)
-    _benchmark(tmp_path / "timings" / "hrtf" / "solve_embedded" / "P_01_reference.tsv", 20.0, 800.0)
+    _benchmark(tmp_path / "timings" / "hrtf" / "solve_numcalc_step" / "P_01_ppm_1_1-1.tsv", 30.0, 900.0)
+    _benchmark(tmp_path / "timings" / "hrtf" / "solve_numcalc_step" / "P_01_ppm_1_2-2.tsv", 10.0, 900.0)
+    _benchmark(tmp_path / "timings" / "hrtf" / "solve_numcalc_step" / "P_01_reference_1_1-2.tsv", 20.0, 800.0)
     costs = {c["variant"]: c for c in solve_costs(results, subject_timings(tmp_path / "timings", "P_01"))}
-    assert costs["ppm"]["solve_seconds"] == 30.0 and costs["ppm"]["seconds_per_frequency"] == 15.0
+    assert costs["ppm"]["solve_seconds"] == 40.0 and costs["ppm"]["seconds_per_frequency"] == 20.0
     assert costs["reference"]["solve_seconds"] == 20.0 and costs["reference"]["elements"] == 2000
+    assert costs["ppm"]["solver"] == "NumCalc"
+    (results / "hrtf" / "embedded.json").write_text(json.dumps({"projects": {
+        "reference": {"seconds_per_frequency": [80.0, 4.0]}, "ppm": {"seconds_per_frequency": [5.0, 3.0]}}}))
+    costs = {c["variant"]: c for c in solve_costs(results, subject_timings(tmp_path / "timings", "P_01"))}
+    assert costs["reference"]["solver"] == "embedded" and costs["reference"]["solve_seconds"] == 84.0
+    assert costs["reference"]["seconds_per_frequency"] == 4.0 and costs["ppm"]["seconds_per_frequency"] == 4.0

@@ -1,4 +1,5 @@
-"""Rule solve_embedded: every step of a project with the embedded bempp-cl solver (resumable)."""
+"""Rule solve_embedded: every step of a subject's projects (its heads) with the embedded bempp-cl solver in one
+process, so that numba compiles the kernels once (resumable)."""
 import sys
 from pathlib import Path
 
@@ -9,4 +10,6 @@ configure_logging(snakemake)  # noqa: F821
 
 from mesh2hrtf_io.hrtf_job import solve_embedded  # noqa: E402
 
-solve_embedded(snakemake.input.project, snakemake.output.status, snakemake.params.store)  # noqa: F821
+params = snakemake.params  # noqa: F821
+solve_embedded(dict(zip(params.variants, snakemake.input.projects)), snakemake.output.status,  # noqa: F821
+               params.stores, snakemake.threads)  # noqa: F821

@@ -76,6 +76,7 @@ AccountingStorageHost=127.0.0.1
 AccountingStoragePort=6819
 AccountingStorageEnforce=associations
 JobCompType=jobcomp/none
+AccountingStoreFlags=job_comment
 SchedulerType=sched/backfill
 SelectType=select/cons_tres
 SelectTypeParameters=CR_Core_Memory
@@ -152,9 +153,21 @@ start_daemon() {  # start_daemon NAME COMMAND...
 
 node_idle() { sinfo -h -N -o "%t" 2>/dev/null | grep -qE "^(idle|mix|alloc)"; }
 
+link_default_config() {
+    # job steps (srun inside a batch job) look for /etc/slurm/slurm.conf whatever SLURM_CONF said at submission:
+    # point it at ours, unless a site configuration is there (then refuse rather than overwrite it)
+    local default=/etc/slurm/slurm.conf
+    if [ -e "$default" ] && [ "$(readlink -f "$default")" != "$(readlink -f "$STATE/slurm.conf")" ]; then
+        [ -L "$default" ] && grep -q "written by scripts/local_slurm.sh" "$default" 2>/dev/null \
+            || die "$default exists (a site configuration?): this script will not replace it"
+    fi
+    mkdir -p /etc/slurm && ln -sfn "$STATE/slurm.conf" "$default"
+}
+
 start() {
     install_packages
     write_configs
+    link_default_config
     export SLURM_CONF="$STATE/slurm.conf"
     start_munge
     start_database
@@ -183,6 +196,9 @@ stop() {
         fi
         rm -f "$STATE/$name.pid"
     done
+    if [ "$(readlink -f /etc/slurm/slurm.conf 2>/dev/null)" = "$(readlink -f "$STATE/slurm.conf")" ]; then
+        rm -f /etc/slurm/slurm.conf
+    fi
 }
 
 case "${1:-}" in

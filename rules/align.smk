@@ -16,8 +16,8 @@ rule prepare_target:
         settings=lambda wc: config["align"],
     threads: 1
     resources:
-        mem_mb=2000,
-        runtime=10,
+        mem_mb=measured_mem_mb("prepare_target"),
+        runtime=measured_runtime("prepare_target"),
     script:
         "../workflow/scripts/prepare_target.py"
 
@@ -40,7 +40,7 @@ rule align_ppm:
         "benchmarks/timings/align/align_ppm/{subject}.tsv"
     threads: 1
     resources:
-        mem_mb=3000,
-        runtime=20,
+        mem_mb=measured_mem_mb("align_ppm"),
+        runtime=measured_runtime("align_ppm"),
     script:
         "../workflow/scripts/align_ppm.py"

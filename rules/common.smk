@@ -175,6 +175,23 @@ def _numcalc_job_costs(wildcards, input):
     return costs[int(wildcards.first) - 1 : int(wildcards.last)]
 
 
+def measured_mem_mb(rule: str):
+    """Memory request (MB) of a rule from its measured peak (workflow/resources.yaml, reporting/resources.py),
+    +50 % per retry."""
+    from reporting.resources import requests
+
+    base = requests(rule)["mem_mb"]
+    return lambda wildcards, attempt: int(base * (1 + 0.5 * (attempt - 1)))
+
+
+def measured_runtime(rule: str):
+    """Wall-clock request (minutes) of a rule from its measured peak, +50 % per retry."""
+    from reporting.resources import requests
+
+    base = requests(rule)["runtime"]
+    return lambda wildcards, attempt: int(base * (1 + 0.5 * (attempt - 1)))
+
+
 def numcalc_step_mem_mb(wildcards, input, attempt):
     """Memory of a NumCalc job (its largest step) from `NumCalc -estimate_ram`, +20 %, +50 % per retry."""
     costs = _numcalc_job_costs(wildcards, input)
@@ -198,16 +215,21 @@ def solved_variants(subject: str) -> list[str]:
     return ([] if given else ["reference"]) + evaluation_conditions(subject)
 
 
-def embedded_threads(wildcards) -> int:
-    """Cores of one embedded-solver job (one per subject): the run's cores (--cores) shared by the subjects,
-    at least 1."""
-    from snakemake.exceptions import WorkflowError
+def embedded_runtime_min(wildcards, input, attempt):
+    """Wall-clock request (minutes) of a subject's embedded-solver job from the dense cost model: 3 x the predicted
+    seconds of every frequency of every head + 5 min of numba compilation (at least 10 min); +50 % per retry. Before
+    the export (dry run): config hrtf.step_runtime_min per frequency."""
+    from mesh2hrtf_io.bem import estimate_cost
+    from mesh2hrtf_io.project_reader import read_project
 
-    try:
-        cores = int(workflow.cores or 1)
-    except (WorkflowError, TypeError, ValueError):  # --cores not given (e.g. --unlock, a cluster executor)
-        cores = 1
-    return max(1, cores // max(1, len(SUBJECTS)))
+    seconds = 300.0
+    for project in input.projects:
+        if not (Path(project) / "parameters.json").is_file():
+            return int(config["hrtf"]["step_runtime_min"] * len(hrtf_frequencies()))
+        solved = read_project(project)
+        cost = estimate_cost(len(solved.vertices_m), len(solved.faces), len(solved.evaluation_points_m))
+        seconds += 3.0 * cost.seconds_per_frequency * len(solved.frequencies_hz)
+    return max(10, int(round(seconds / 60.0 * (1 + 0.5 * (attempt - 1)))))
 
 
 def embedded_mem_mb(wildcards, input):

@@ -17,8 +17,8 @@ rule own_pinna_region:
         "benchmarks/timings/controls/own_pinna_region/{subject}.tsv"
     threads: 1
     resources:
-        mem_mb=3000,
-        runtime=10,
+        mem_mb=measured_mem_mb("own_pinna_region"),
+        runtime=measured_runtime("own_pinna_region"),
     script:
         "../workflow/scripts/own_pinna.py"
 
@@ -40,8 +40,8 @@ rule place_default_ppm:
         global_pose_only=True,
     threads: 1
     resources:
-        mem_mb=3000,
-        runtime=20,
+        mem_mb=measured_mem_mb("place_default_ppm"),
+        runtime=measured_runtime("place_default_ppm"),
     script:
         "../workflow/scripts/align_ppm.py"
 
@@ -61,8 +61,8 @@ rule stitch_control:
         gap_mm=lambda wc: config["stitch"]["gap_mm"],
     threads: 1
     resources:
-        mem_mb=3000,
-        runtime=10,
+        mem_mb=measured_mem_mb("stitch"),
+        runtime=measured_runtime("stitch"),
     script:
         "../workflow/scripts/stitch_head.py"
 
@@ -82,7 +82,7 @@ rule remesh_control:
         bands=lambda wc: config["stitch"]["bands"],
     threads: 1
     resources:
-        mem_mb=4000,
-        runtime=20,
+        mem_mb=measured_mem_mb("remesh"),
+        runtime=measured_runtime("remesh"),
     script:
         "../workflow/scripts/remesh_head.py"

@@ -17,7 +17,7 @@ rule make_demo_subject:
         settings=lambda wc: config["demo"],
     threads: 1
     resources:
-        mem_mb=3000,
-        runtime=10,
+        mem_mb=measured_mem_mb("make_demo_subject"),
+        runtime=measured_runtime("make_demo_subject"),
     script:
         "../workflow/scripts/make_demo_subject.py"

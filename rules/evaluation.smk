@@ -18,8 +18,8 @@ rule condition_distances:
         condition="ppm|own_pinna|default_ppm",
     threads: 1
     resources:
-        mem_mb=2000,
-        runtime=10,
+        mem_mb=measured_mem_mb("condition_distances"),
+        runtime=measured_runtime("condition_distances"),
     script:
         "../workflow/scripts/condition_distances.py"
 
@@ -45,7 +45,7 @@ if EVALUATION_FOLDER:
             configfiles=EVALUATION_CONFIGFILES,
         threads: 1
         resources:
-            mem_mb=3000,
-            runtime=20,
+            mem_mb=measured_mem_mb("evaluation_report"),
+            runtime=measured_runtime("evaluation_report"),
         script:
             "../workflow/scripts/evaluation_report.py"

@@ -20,8 +20,8 @@ rule export_project:
         title=lambda wc: f"{wc.subject}_{wc.variant}",
     threads: 1
     resources:
-        mem_mb=2000,
-        runtime=10,
+        mem_mb=measured_mem_mb("export_project"),
+        runtime=measured_runtime("export_project"),
     script:
         "../workflow/scripts/export_project.py"
 
@@ -60,10 +60,10 @@ rule solve_embedded:
         variants=lambda wc: solved_variants(wc.subject),
         stores=lambda wc: {v: step_store(type("Wildcards", (), {"subject": wc.subject, "variant": v}))
                            for v in solved_variants(wc.subject)},
-    threads: embedded_threads
+    threads: config["hrtf"]["embedded_threads"]
     resources:
         mem_mb=embedded_mem_mb,
-        runtime=lambda wc: config["hrtf"]["step_runtime_min"] * len(hrtf_frequencies()) * 2,
+        runtime=embedded_runtime_min,
     script:
         "../workflow/scripts/solve_embedded.py"
 
@@ -83,7 +83,7 @@ rule collect_sofa:
         "benchmarks/timings/hrtf/collect_sofa/{subject}_{variant}.tsv"
     threads: 1
     resources:
-        mem_mb=2000,
-        runtime=10,
+        mem_mb=measured_mem_mb("collect_sofa"),
+        runtime=measured_runtime("collect_sofa"),
     script:
         "../workflow/scripts/collect_sofa.py"

@@ -23,7 +23,7 @@ rule localisation:
         solved_ear=lambda wc: None if config["hrtf"]["ears"] == "both" else config["hrtf"]["ears"],
     threads: 1
     resources:
-        mem_mb=2000,
-        runtime=10,
+        mem_mb=measured_mem_mb("localisation"),
+        runtime=measured_runtime("localisation"),
     script:
         "../workflow/scripts/localisation.py"

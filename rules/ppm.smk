@@ -13,6 +13,7 @@ rule render_ppm:
         "benchmarks/timings/ppm/render_ppm.tsv"
     threads: 1
     resources:
-        mem_mb=3000,
+        mem_mb=measured_mem_mb("render_ppm"),
+        runtime=measured_runtime("render_ppm"),
     script:
         "../workflow/scripts/render_ppm.py"

@@ -13,8 +13,8 @@ rule report_subject:
         "benchmarks/timings/report/report_subject/{subject}.tsv"
     threads: 1
     resources:
-        mem_mb=2000,
-        runtime=10,
+        mem_mb=measured_mem_mb("report_subject"),
+        runtime=measured_runtime("report_subject"),
     script:
         "../workflow/scripts/report_subject.py"
 
@@ -35,7 +35,7 @@ rule report_dataset:
         subjects=SUBJECTS,
     threads: 1
     resources:
-        mem_mb=2000,
-        runtime=10,
+        mem_mb=measured_mem_mb("report_dataset"),
+        runtime=measured_runtime("report_dataset"),
     script:
         "../workflow/scripts/report_dataset.py"

@@ -17,8 +17,8 @@ rule stitch:
         gap_mm=lambda wc: config["stitch"]["gap_mm"],
     threads: 1
     resources:
-        mem_mb=3000,
-        runtime=10,
+        mem_mb=measured_mem_mb("stitch"),
+        runtime=measured_runtime("stitch"),
     script:
         "../workflow/scripts/stitch_head.py"
 
@@ -38,7 +38,7 @@ rule remesh:
         bands=lambda wc: config["stitch"]["bands"],
     threads: 1
     resources:
-        mem_mb=4000,
-        runtime=20,
+        mem_mb=measured_mem_mb("remesh"),
+        runtime=measured_runtime("remesh"),
     script:
         "../workflow/scripts/remesh_head.py"

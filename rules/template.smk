@@ -16,7 +16,7 @@ rule build_template:
         settings=template_params(),
     threads: 1
     resources:
-        mem_mb=4000,
-        runtime=60,
+        mem_mb=measured_mem_mb("build_template"),
+        runtime=measured_runtime("build_template"),
     script:
         "../workflow/scripts/build_template.py"

@@ -146,3 +146,32 @@ def test_solve_cost_of_a_subject_with_underscores_in_its_name(tmp_path):
     costs = {c["variant"]: c for c in solve_costs(results, subject_timings(tmp_path / "timings", "P_01"))}
     assert costs["reference"]["solver"] == "embedded" and costs["reference"]["solve_seconds"] == 84.0
     assert costs["reference"]["seconds_per_frequency"] == 4.0 and costs["ppm"]["seconds_per_frequency"] == 4.0
+
+
+def test_rule_requests_come_from_measured_peaks(tmp_path):
+    """workflow/resources.yaml: the largest peak of each rule's benchmark files; requests 1.5 x memory + 256 MB
+    and 3 x the time (floors 512 MB, 10 min); a peak only grows when remeasured; NumCalc steps are left to the
+    cost model; the packaged file covers every rule the workflow submits."""
+    import yaml
+
+    from reporting.resources import DEFAULT_FILE, requests, rule_peaks, write_peaks
+
+    timings = tmp_path / "timings"
+    _benchmark(timings / "align" / "align_ppm" / "S1.tsv", 40.0, 900.0)
+    _benchmark(timings / "align" / "align_ppm" / "S2.tsv", 400.0, 700.0)
+    _benchmark(timings / "ppm" / "render_ppm.tsv", 5.0, 100.0)
+    _benchmark(timings / "hrtf" / "solve_numcalc_step" / "S1_ppm_1_1-1.tsv", 200.0, 4000.0)
+    peaks = rule_peaks([timings])
+    assert peaks["align_ppm"] == {"max_rss_mb": 900.0, "seconds": 400.0, "jobs": 2}
+    assert "render_ppm" in peaks and "solve_numcalc_step" not in peaks
+    path = tmp_path / "resources.yaml"
+    write_peaks(path, peaks, [str(timings)])
+    assert requests("align_ppm", path) == {"mem_mb": 1606, "runtime": 20}
+    assert requests("render_ppm", path) == {"mem_mb": 512, "runtime": 10}
+    assert requests("never_measured", path) == {"mem_mb": 4000, "runtime": 60}
+    write_peaks(path, {"align_ppm": {"max_rss_mb": 500.0, "seconds": 10.0, "jobs": 1}}, ["elsewhere"])
+    assert yaml.safe_load(path.read_text())["rules"]["align_ppm"] == {"max_rss_mb": 900.0, "seconds": 400.0}
+    packaged = yaml.safe_load(DEFAULT_FILE.read_text())["rules"]
+    for rule in ("render_ppm", "make_demo_subject", "build_template", "prepare_target", "align_ppm", "stitch", "remesh",
+                 "export_project", "solve_embedded", "collect_sofa", "localisation", "report_subject", "report_dataset"):
+        assert packaged[rule]["max_rss_mb"] > 0 and packaged[rule]["seconds"] > 0, rule

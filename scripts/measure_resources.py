@@ -1,0 +1,33 @@
+"""Update workflow/resources.yaml (measured peak memory and wall clock per rule) from Snakemake benchmark files.
+
+Run: .venv/bin/python scripts/measure_resources.py benchmarks/timings [other/benchmarks/timings ...]
+"""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from reporting.resources import DEFAULT_FILE, requests, rule_peaks, write_peaks  # noqa: E402
+
+
+def main(argv: list[str]) -> int:
+    if not argv:
+        print(__doc__)
+        return 2
+    missing = [folder for folder in argv if not Path(folder).is_dir()]
+    if missing:
+        print(f"no such folder: {', '.join(missing)}; give folders of Snakemake benchmark files", file=sys.stderr)
+        return 2
+    peaks = rule_peaks(argv)
+    write_peaks(DEFAULT_FILE, peaks, [str(Path(folder)) for folder in argv])
+    for rule, row in peaks.items():
+        request = requests(rule)
+        print(f"{rule:22s} {row['jobs']:4d} jobs  peak {row['max_rss_mb']:8.1f} MB {row['seconds']:8.1f} s  ->  "
+              f"mem_mb {request['mem_mb']}, runtime {request['runtime']} min")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main(sys.argv[1:]))

@@ -109,3 +109,38 @@ def test_the_committed_sonicom_evaluation_parses_and_its_readme_follows_the_summ
         assert line in readme
     assert set(GOALS) <= {"ppm", "own_pinna"}
     assert re.search(r"Made by `bash scripts/run.sh --configfile \S+`", readme)
+
+
+def test_figures_page_and_readme_of_an_evaluation(tmp_path, sonicom):
+    """Figure 6 (scan coloured by distance + histograms), Figure 7 (QE/PE bars), the HTML page and the README
+    from rows and per-point distances; the README's table holds the rows' numbers and the goals' verdicts."""
+    from reporting.evaluation import figure6, figure7, write_html, write_readme
+
+    results = tmp_path / "results"
+    scan = trimesh.load(sonicom / "P143" / "pinna_left_crop.ply", process=False, force="mesh")
+    (results / "S1" / "target").mkdir(parents=True)
+    scan.export(results / "S1" / "target" / "pinna_target.ply")
+    rng = np.random.default_rng(0)
+    for condition, scale in (("ppm", 0.3), ("own_pinna", 0.1)):
+        folder = results / "S1" / "evaluation" / condition
+        folder.mkdir(parents=True)
+        np.savez(folder / "distances.npz", target_to_model=rng.gamma(2.0, scale, len(scan.vertices)),
+                 model_to_target=rng.gamma(2.0, scale, 100), counted=np.ones(100, bool), target_points_mm=scan.vertices)
+    rows = [{"subject": "S1", "condition": "reference", "qe_percent": 8.0, "pe_deg": 30.0, "delta_qe_pp": 0.0,
+             "delta_pe_deg": 0.0},
+            {"subject": "S1", "condition": "ppm", "qe_percent": 9.0, "pe_deg": 31.0, "delta_qe_pp": 1.0,
+             "delta_pe_deg": 1.0, "distance_median_mm": 0.5, "solve_cpu_hours": 2.0},
+            {"subject": "S1", "condition": "own_pinna", "qe_percent": 8.2, "pe_deg": 30.1, "delta_qe_pp": 0.2,
+             "delta_pe_deg": 0.1, "distance_median_mm": 0.2, "solve_cpu_hours": 2.1}]
+    figure6(results, ["S1"], {"S1": ["ppm", "own_pinna"]}, tmp_path / "figure6.png")
+    figure7(rows, tmp_path / "figure7.png")
+    for name in ("figure6.png", "figure7.png"):
+        assert (tmp_path / name).read_bytes()[:4] == b"\x89PNG"
+    write_html(tmp_path / "report.html", rows, tmp_path / "figure6.png", tmp_path / "figure7.png", "40 frequencies",
+               ["config/paper_sonicom.yaml"])
+    page = (tmp_path / "report.html").read_text()
+    assert page.count("data:image/png;base64,") == 2 and "S1 ppm: ΔQE +1.00 pp (goal ±2), ΔPE +1.00° (goal ±2): met" in page
+    write_readme(tmp_path / "README.md", rows, "40 frequencies", ["config/paper_sonicom.yaml"], 3.5)
+    readme = (tmp_path / "README.md").read_text()
+    assert "Made by `bash scripts/run.sh --configfile config/paper_sonicom.yaml`" in readme
+    assert "| S1 | ppm | 9.000 | 31.000 | 1.000 | 1.000 | 0.500 |" in readme and "4.10 CPU hours" in readme

@@ -28,8 +28,7 @@ def rule_peaks(timing_roots: list[str | os.PathLike]) -> dict[str, dict]:
     peaks: dict[str, dict] = {}
     for root in timing_roots:
         for path in sorted(Path(root).rglob("*.tsv")):
-            parts = path.relative_to(root).parts  # <group>/<rule>/<job>.tsv, or <group>/<rule>.tsv for one-job rules
-            rule = parts[1] if len(parts) >= 3 else path.stem
+            rule = path.parent.name  # <group>/<rule>/<job>.tsv
             if rule in MODELLED:
                 continue
             try:

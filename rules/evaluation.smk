@@ -38,6 +38,8 @@ if EVALUATION_FOLDER:
             sofa=directory(f"{EVALUATION_FOLDER}/sofa"),
         log:
             "logs/evaluation/evaluation_report.log",
+        benchmark:
+            "benchmarks/timings/evaluation/evaluation_report/all.tsv"
         params:
             subjects=SUBJECTS,
             conditions={s: evaluation_conditions(s) for s in SUBJECTS},

@@ -14,7 +14,7 @@ rule localisation:
     log:
         "logs/localisation/{subject}.log",
     benchmark:
-        "benchmarks/timings/localisation/{subject}.tsv"
+        "benchmarks/timings/localisation/localisation/{subject}.tsv"
     params:
         settings=lambda wc: config["localisation"],
         reference_frequencies=reference_frequencies,

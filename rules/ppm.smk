@@ -10,7 +10,7 @@ rule render_ppm:
     log:
         "logs/ppm/render_ppm.log",
     benchmark:
-        "benchmarks/timings/ppm/render_ppm.tsv"
+        "benchmarks/timings/ppm/render_ppm/all.tsv"
     threads: 1
     resources:
         mem_mb=measured_mem_mb("render_ppm"),

@@ -30,7 +30,7 @@ rule report_dataset:
     log:
         "logs/report/report_dataset.log",
     benchmark:
-        "benchmarks/timings/report/report_dataset.tsv"
+        "benchmarks/timings/report/report_dataset/all.tsv"
     params:
         subjects=SUBJECTS,
     threads: 1

@@ -1,6 +1,6 @@
 """Update workflow/resources.yaml (measured peak memory and wall clock per rule) from Snakemake benchmark files.
 
-Run: .venv/bin/python scripts/measure_resources.py benchmarks/timings [other/benchmarks/timings ...]
+Run: .venv/bin/python scripts/measure_resources.py benchmarks/timings [other/benchmarks/timings ...] [--note "what ran"]
 """
 from __future__ import annotations
 
@@ -13,6 +13,10 @@ from reporting.resources import DEFAULT_FILE, requests, rule_peaks, write_peaks 
 
 
 def main(argv: list[str]) -> int:
+    note = None
+    if "--note" in argv:
+        at = argv.index("--note")
+        note, argv = argv[at + 1], argv[:at] + argv[at + 2:]
     if not argv:
         print(__doc__)
         return 2
@@ -21,7 +25,7 @@ def main(argv: list[str]) -> int:
         print(f"no such folder: {', '.join(missing)}; give folders of Snakemake benchmark files", file=sys.stderr)
         return 2
     peaks = rule_peaks(argv)
-    write_peaks(DEFAULT_FILE, peaks, [str(Path(folder)) for folder in argv])
+    write_peaks(DEFAULT_FILE, peaks, [note] if note else [str(Path(folder)) for folder in argv])
     for rule, row in peaks.items():
         request = requests(rule)
         print(f"{rule:22s} {row['jobs']:4d} jobs  peak {row['max_rss_mb']:8.1f} MB {row['seconds']:8.1f} s  ->  "

@@ -159,7 +159,7 @@ def test_rule_requests_come_from_measured_peaks(tmp_path):
     timings = tmp_path / "timings"
     _benchmark(timings / "align" / "align_ppm" / "S1.tsv", 40.0, 900.0)
     _benchmark(timings / "align" / "align_ppm" / "S2.tsv", 400.0, 700.0)
-    _benchmark(timings / "ppm" / "render_ppm.tsv", 5.0, 100.0)
+    _benchmark(timings / "ppm" / "render_ppm" / "all.tsv", 5.0, 100.0)
     _benchmark(timings / "hrtf" / "solve_numcalc_step" / "S1_ppm_1_1-1.tsv", 200.0, 4000.0)
     peaks = rule_peaks([timings])
     assert peaks["align_ppm"] == {"max_rss_mb": 900.0, "seconds": 400.0, "jobs": 2}

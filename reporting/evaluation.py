@@ -36,9 +36,12 @@ CONDITION_LABELS = {"reference": "reference (dataset HRIRs, rebuilt at the set)"
 
 
 def condition_distances(target_path: str | os.PathLike, pinna_path: str | os.PathLike,
-                        summary_path: str | os.PathLike, points_path: str | os.PathLike) -> dict:
-    """Target -> pinna and pinna -> target distances (mm) of one condition: a JSON summary and the per-point
-    values (npz: ``target_to_model`` per scan point, ``model_to_target`` per pinna vertex, ``counted`` mask)."""
+                        summary_path: str | os.PathLike, points_path: str | os.PathLike, reach_mm: float = 10.0) -> dict:
+    """Target -> model and model -> target distances (mm) of one condition, the model being the surface that was
+    solved (the condition's final head mesh; a pinna mesh works the same): a JSON summary and the per-point values
+    (npz: ``target_to_model`` per scan point, ``model_to_target`` per model vertex, ``counted`` mask). Model ->
+    target counts the vertices within ``reach_mm`` of the scan whose closest scan point lies away from the scan's
+    boundary (the rest of a head is not compared with a pinna scan)."""
     import trimesh  # noqa: PLC0415
 
     from ppm.align.report import distance_summary, one_sided_distances_mm, reverse_distances_mm  # noqa: PLC0415
@@ -50,13 +53,14 @@ def condition_distances(target_path: str | os.PathLike, pinna_path: str | os.Pat
         raise ValueError(f"{pinna_path}: no faces; give the condition's pinna surface (mm)")
     forward = one_sided_distances_mm(target, pinna.vertices, pinna.faces)
     reverse, counted = reverse_distances_mm(target, pinna.vertices)
+    counted &= reverse <= reach_mm
     if not counted.any():
         raise ValueError(f"{pinna_path}: no vertex of the pinna lies over the scanned region of {target_path}; "
                          "is it placed at this subject's left ear?")
     summary = {"target": str(target_path), "pinna": str(pinna_path),
                "target_to_model": distance_summary(forward),
                "model_to_target": distance_summary(reverse[counted]),
-               "model_vertices_counted": int(counted.sum()), "model_vertices": int(len(counted))}
+               "model_vertices_counted": int(counted.sum()), "model_vertices": int(len(counted)), "reach_mm": reach_mm}
     buffer = io.BytesIO()
     np.savez_compressed(buffer, target_to_model=forward, model_to_target=reverse, counted=counted,
                         target_points_mm=target.points_mm)

@@ -100,13 +100,6 @@ def control_pinna(wildcards) -> str:
     return f"results/{wildcards.subject}/controls/default_ppm/align/aligned_pinna.ply"
 
 
-def condition_pinna(subject: str, condition: str) -> str:
-    """The pinna surface (mm) a condition's head carries, for the target <-> model distances."""
-    if condition == "ppm":
-        return f"results/{subject}/align/aligned_pinna.ply"
-    return control_pinna(type("Wildcards", (), {"subject": subject, "control": condition}))
-
-
 def hrtf_frequencies():
     """Frequencies (Hz) of the HRTF projects, from config hrtf.frequencies_hz (any form of
     mesh2hrtf_io/data/frequency_sets.yaml)."""

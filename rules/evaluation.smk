@@ -1,12 +1,12 @@
 # The dataset evaluation (config evaluation.folder): per subject and condition the target <-> model distances
-# of the condition's pinna; then summary.csv, the left-ear HRTFs of every condition, the paper's Figures 6 and
+# of the condition's solved head (its pinna after stitching and remeshing); then summary.csv, the left-ear HRTFs of every condition, the paper's Figures 6 and
 # 7, an HTML report and a README, all in the evaluation folder (kept in the repository).
 
 
 rule condition_distances:
     input:
         target="results/{subject}/target/pinna_target.ply",
-        pinna=lambda wc: condition_pinna(wc.subject, wc.condition),
+        pinna=lambda wc: hrtf_head_mesh(type("Wildcards", (), {"subject": wc.subject, "variant": wc.condition})),
     output:
         summary="results/{subject}/evaluation/{condition}/distances.json",
         points="results/{subject}/evaluation/{condition}/distances.npz",

@@ -51,8 +51,15 @@ def condition_distances(target_path: str | os.PathLike, pinna_path: str | os.Pat
     pinna = trimesh.load(pinna_path, process=False, force="mesh")
     if len(pinna.faces) == 0:
         raise ValueError(f"{pinna_path}: no faces; give the condition's pinna surface (mm)")
+    from scipy.spatial import cKDTree  # noqa: PLC0415
+
     forward = one_sided_distances_mm(target, pinna.vertices, pinna.faces)
-    reverse, counted = reverse_distances_mm(target, pinna.vertices)
+    # only model vertices near the scan are compared (a head's far side would cost gigabytes of candidates)
+    near = np.isfinite(cKDTree(target.points_mm).query(pinna.vertices, distance_upper_bound=reach_mm + 2.0)[0])
+    reverse = np.full(len(pinna.vertices), np.inf)
+    counted = np.zeros(len(pinna.vertices), dtype=bool)
+    if near.any():
+        reverse[near], counted[near] = reverse_distances_mm(target, pinna.vertices[near])
     counted &= reverse <= reach_mm
     if not counted.any():
         raise ValueError(f"{pinna_path}: no vertex of the pinna lies over the scanned region of {target_path}; "

@@ -15,8 +15,9 @@ from ppm.atomic import write_text_atomic
 
 from .cost import read_benchmark
 
-#: Requests from peaks: memory x 1.5 + 256 MB (at least 512 MB), time x 3 (at least 10 min).
-MEMORY_FACTOR, MEMORY_EXTRA_MB, MEMORY_FLOOR_MB = 1.5, 256, 512
+#: Requests from peaks: memory x 1.5 + 512 MB (a cluster job also holds Snakemake's own process, ~350 MB; at least
+#: 768 MB), time x 3 (at least 10 min).
+MEMORY_FACTOR, MEMORY_EXTRA_MB, MEMORY_FLOOR_MB = 1.5, 512, 768
 TIME_FACTOR, TIME_FLOOR_MIN = 3.0, 10
 DEFAULT_FILE = Path(__file__).resolve().parents[1] / "workflow" / "resources.yaml"
 #: Rules whose requests come from elsewhere (the NumCalc cost model, the embedded solver's dense model).
@@ -43,7 +44,7 @@ def rule_peaks(timing_roots: list[str | os.PathLike]) -> dict[str, dict]:
 
 
 def write_peaks(path: str | os.PathLike, peaks: dict[str, dict], sources: list[str]) -> Path:
-    """The peaks file, merged over what it held (a rule's peak only grows), with where they were measured."""
+    """The peaks file, merged over what it held (a rule's peak only grows; delete the file to start afresh after a change that lowers a peak), with where they were measured."""
     path = Path(path)
     old = yaml.safe_load(path.read_text()) if path.is_file() else {}
     rules = dict(old.get("rules", {}))
@@ -52,7 +53,7 @@ def write_peaks(path: str | os.PathLike, peaks: dict[str, dict], sources: list[s
         rules[rule] = {"max_rss_mb": max(row["max_rss_mb"], before.get("max_rss_mb", 0.0)),
                        "seconds": max(row["seconds"], before.get("seconds", 0.0))}
     header = ("# Measured peaks of each rule's jobs (largest resident memory in MB, wall clock in s), from Snakemake\n"
-              "# benchmark files; requests are mem_mb = 1.5 x peak + 256 (>= 512) and runtime = 3 x peak (>= 10 min)\n"
+              "# benchmark files; requests are mem_mb = 1.5 x peak + 512 (>= 768) and runtime = 3 x peak (>= 10 min)\n"
               "# (reporting/resources.py). Remeasure after a change: .venv/bin/python scripts/measure_resources.py\n"
               "# benchmarks/timings [more folders]. NumCalc steps use the cost model instead.\n")
     body = yaml.safe_dump({"sources": sorted(set(old.get("sources", [])) | set(sources)), "rules": dict(sorted(rules.items()))},

@@ -34,6 +34,7 @@ def main() -> None:
               f"MaxRSS/ReqMem {row['max_rss_over_request']:.2f}  Elapsed/Timelimit {row['max_elapsed_over_limit']:.3f}")
     figures = {key: result[key] for key in ("jobs_submitted", "jobs_failed", "jobs_cancelled", "max_rss_over_request",
                                             "max_elapsed_over_limit", "resumed_after_scancel")}
+    figures["steps_solved_after_resume"] = result.get("steps_solved_after_resume")
     figures["seconds"] = round(time.perf_counter() - start, 1)
     print(json.dumps(figures))
 

@@ -165,11 +165,6 @@ def read_hrtf_set(path: str | os.PathLike) -> HrirSet:
     return HrirSet(irs, rate, azimuth, elevation, source=str(path))
 
 
-def _unit_vectors(azimuth_deg: np.ndarray, elevation_deg: np.ndarray) -> np.ndarray:
-    az, el = np.radians(azimuth_deg), np.radians(elevation_deg)
-    return np.stack([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)], axis=1)
-
-
 def read_one_ear_completed(path: str | os.PathLike, solved_ear: str, other: HrirSet,
                            tolerance_deg: float = 0.1) -> HrirSet:
     """A SOFA file holding one ear only (``solved_ear``: "left" or "right", e.g. a head solved for its left ear)
@@ -184,7 +179,10 @@ def read_one_ear_completed(path: str | os.PathLike, solved_ear: str, other: Hrir
     if abs(rate - other.sampling_rate_hz) > 1e-6 or irs.shape[2] != other.irs.shape[2]:
         raise AmtBridgeError(f"{path}: {rate:g} Hz x {irs.shape[2]} samples, but {other.source} has "
                              f"{other.sampling_rate_hz:g} Hz x {other.irs.shape[2]}; rebuild both alike (config hrtf.hrir)")
-    mine, theirs = _unit_vectors(azimuth, elevation), _unit_vectors(other.azimuth_deg, other.elevation_deg)
+    from mesh2hrtf_io.grids import spherical_to_cartesian_m  # noqa: PLC0415
+
+    mine = spherical_to_cartesian_m(azimuth, elevation, np.ones(len(azimuth)))
+    theirs = spherical_to_cartesian_m(other.azimuth_deg, other.elevation_deg, np.ones(len(other.azimuth_deg)))
     cosines = mine @ theirs.T
     nearest = np.argmax(cosines, axis=1)
     off_deg = np.degrees(np.arccos(np.clip(cosines[np.arange(len(mine)), nearest], -1.0, 1.0)))

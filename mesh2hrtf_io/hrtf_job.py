@@ -79,8 +79,8 @@ def solve_embedded(projects: dict[str, str | os.PathLike], status_path: str | os
                    stores: dict[str, str | os.PathLike | None] | None = None, threads: int | None = None) -> None:
     """Solve every missing step of several projects (e.g. a subject's reference and PPM heads, by name) with
     the embedded solver in this one process, so that numba compiles bempp-cl's kernels once for all of them;
-    write a summary JSON per project (steps solved and restored, seconds per step) and the time to the first
-    solved step (kernel compilation). With ``stores`` (name -> folder), stored steps are restored first and
+    write a summary JSON per project (steps solved and restored, seconds per step and per frequency, the first
+    including the kernel compilation) and the job's total seconds. With ``stores`` (name -> folder), stored steps are restored first and
     solved ones copied there. ``threads``: numba threads for the assembly (default: numba's)."""
     import time  # noqa: PLC0415
 

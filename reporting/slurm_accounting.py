@@ -9,7 +9,6 @@ from __future__ import annotations
 import os
 import re
 import shutil
-import signal
 import subprocess
 import sys
 import tempfile
@@ -47,11 +46,12 @@ def rule_of(comment: str) -> str:
     return name.split("_wildcards_")[0] or "unknown"
 
 
-def sacct_jobs(since: str = "now-1days") -> list[dict]:
+def sacct_jobs(since: str = "now-1days", env: dict | None = None) -> list[dict]:
     """Every job since ``since`` with its rule, state, requested memory and time, and the largest MaxRSS and
-    Elapsed of its steps (the batch step holds the job's processes)."""
+    Elapsed of its steps (the batch step holds the job's processes). ``env``: the environment sacct runs in
+    (e.g. with SLURM_CONF); default this process's."""
     done = subprocess.run(["sacct", "--parsable2", "--noheader", "--starttime", since, "--format", ",".join(SACCT_FIELDS)],
-                          capture_output=True, text=True, check=True)
+                          capture_output=True, text=True, check=True, env=env)
     jobs: dict[str, dict] = {}
     for line in done.stdout.splitlines():
         values = dict(zip(SACCT_FIELDS, line.split("|")))
@@ -133,7 +133,7 @@ def run_demo_on_slurm(root: Path, work: Path | None = None, stop_after: bool = T
             again = subprocess.run(command, cwd=work, env=env, capture_output=True, text=True, timeout=3600)
             if again.returncode != 0:
                 raise RuntimeError(f"the resumed run failed:\n{(again.stdout + again.stderr)[-3000:]}")
-        jobs = _sacct_with_env(env, since)
+        jobs = sacct_jobs(since, env)
         summary = summarise(jobs)
         summary["resumed_after_scancel"] = cancelled
         status = work / "results" / "demo01" / "hrtf" / "embedded.json"
@@ -149,18 +149,6 @@ def run_demo_on_slurm(root: Path, work: Path | None = None, stop_after: bool = T
             scratch.cleanup()
         if stop_after:
             local_slurm(root, "stop")
-
-
-def _sacct_with_env(env: dict, since: str) -> list[dict]:
-    previous = os.environ.get("SLURM_CONF")
-    os.environ["SLURM_CONF"] = env["SLURM_CONF"]
-    try:
-        return sacct_jobs(since)
-    finally:
-        if previous is None:
-            os.environ.pop("SLURM_CONF", None)
-        else:
-            os.environ["SLURM_CONF"] = previous
 
 
 def _cancel_once(rule: str, ready: Path, env: dict, run: subprocess.Popen, log: Callable[[str], None]) -> bool:
@@ -180,8 +168,3 @@ def _cancel_once(rule: str, ready: Path, env: dict, run: subprocess.Popen, log: 
         time.sleep(2)
     return False
 
-
-def stop_process_group(run: subprocess.Popen) -> None:
-    """End a run started with start_new_session (used on test failure)."""
-    if run.poll() is None:
-        os.killpg(run.pid, signal.SIGTERM)

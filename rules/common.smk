@@ -108,15 +108,25 @@ def hrtf_frequencies():
     return frequencies_from_spec(config["hrtf"]["frequencies_hz"])
 
 
+def head_mesh_of(subject: str, variant: str) -> str:
+    """The head mesh (mm) whose HRTFs a subject's variant stands for."""
+    if variant == "reference":
+        return str(DATA_ROOT / subject / config["hrtf"]["reference_head"])
+    if variant == "ppm":
+        return f"results/{subject}/remesh/head.ply"
+    if variant in CONTROLS:
+        return f"results/{subject}/controls/{variant}/head.ply"
+    raise ValueError(f"unknown HRTF variant {variant!r}; known: {HRTF_VARIANTS}")
+
+
 def hrtf_head_mesh(wildcards):
-    """The head mesh (mm) whose HRTFs the variant stands for."""
-    if wildcards.variant == "reference":
-        return str(DATA_ROOT / wildcards.subject / config["hrtf"]["reference_head"])
-    if wildcards.variant == "ppm":
-        return f"results/{wildcards.subject}/remesh/head.ply"
-    if wildcards.variant in CONTROLS:
-        return f"results/{wildcards.subject}/controls/{wildcards.variant}/head.ply"
-    raise ValueError(f"unknown HRTF variant {wildcards.variant!r}; known: {HRTF_VARIANTS}")
+    """Input function: the head mesh of {subject} and {variant}."""
+    return head_mesh_of(wildcards.subject, wildcards.variant)
+
+
+def given_reference_sofa(subject: str) -> Path:
+    """Where the dataset keeps a subject's reference HRIRs (config localisation.reference_sofa; may be absent)."""
+    return DATA_ROOT / subject / config["localisation"]["reference_sofa"]
 
 
 def hrtf_export_inputs(wildcards) -> dict:
@@ -124,7 +134,7 @@ def hrtf_export_inputs(wildcards) -> dict:
     project is solved at (so that solved and reference ears combine direction by direction)."""
     inputs = {"head": hrtf_head_mesh(wildcards)}
     if config["hrtf"]["grid"] == "reference_sofa":
-        given = DATA_ROOT / wildcards.subject / config["localisation"]["reference_sofa"]
+        given = given_reference_sofa(wildcards.subject)
         if not given.is_file():
             raise ValueError(f"config hrtf.grid=reference_sofa: {given} is missing; give the reference HRIRs or use "
                              "hrtf.grid: sagittal")
@@ -132,10 +142,15 @@ def hrtf_export_inputs(wildcards) -> dict:
     return inputs
 
 
-def step_store(wildcards):
-    """Where solved steps of this subject and variant are kept (config hrtf.step_store), or None."""
+def store_of(subject: str, variant: str) -> str | None:
+    """Where solved steps of a subject's variant are kept (config hrtf.step_store), or None."""
     folder = config["hrtf"]["step_store"]
-    return str(Path(folder) / wildcards.subject / wildcards.variant) if folder else None
+    return str(Path(folder) / subject / variant) if folder else None
+
+
+def step_store(wildcards):
+    """Param function: the step store of {subject} and {variant}, or None."""
+    return store_of(wildcards.subject, wildcards.variant)
 
 
 def hrtf_sources():
@@ -143,14 +158,19 @@ def hrtf_sources():
     return ["1", "2"] if config["hrtf"]["ears"] == "both" else ["1"]
 
 
-def solved_steps(wildcards):
-    """What collect_sofa waits for: every NumCalc step job, or the one embedded-solver job."""
-    base = f"results/{wildcards.subject}/hrtf/{wildcards.variant}/steps"
+def steps_of(subject: str, variant: str) -> list[str]:
+    """The status files of a subject's variant's solve: every NumCalc step job, or the subject's embedded job."""
+    base = f"results/{subject}/hrtf/{variant}/steps"
     if config["hrtf"]["solver"] == "embedded":
-        return [f"results/{wildcards.subject}/hrtf/embedded.json"]
+        return [f"results/{subject}/hrtf/embedded.json"]
     n_steps, per_job = len(hrtf_frequencies()), config["hrtf"]["steps_per_job"]
     ranges = [(k, min(k + per_job - 1, n_steps)) for k in range(1, n_steps + 1, per_job)]
     return [f"{base}/source_{s}/steps_{a}-{b}.json" for s in hrtf_sources() for a, b in ranges]
+
+
+def solved_steps(wildcards):
+    """Input function of collect_sofa: the status files of {subject} and {variant}'s solve."""
+    return steps_of(wildcards.subject, wildcards.variant)
 
 
 def _numcalc_job_costs(wildcards, input):
@@ -168,21 +188,23 @@ def _numcalc_job_costs(wildcards, input):
     return costs[int(wildcards.first) - 1 : int(wildcards.last)]
 
 
-def measured_mem_mb(rule: str):
-    """Memory request (MB) of a rule from its measured peak (workflow/resources.yaml, reporting/resources.py),
-    +50 % per retry."""
+def _measured(rule: str, key: str):
+    """Resource function: request ``key`` (mem_mb, runtime in minutes) of a rule from its measured peak
+    (workflow/resources.yaml, reporting/resources.py), +50 % per retry."""
     from reporting.resources import requests
 
-    base = requests(rule)["mem_mb"]
+    base = requests(rule)[key]
     return lambda wildcards, attempt: int(base * (1 + 0.5 * (attempt - 1)))
+
+
+def measured_mem_mb(rule: str):
+    """Memory request (MB) of a rule from its measured peak, +50 % per retry."""
+    return _measured(rule, "mem_mb")
 
 
 def measured_runtime(rule: str):
     """Wall-clock request (minutes) of a rule from its measured peak, +50 % per retry."""
-    from reporting.resources import requests
-
-    base = requests(rule)["runtime"]
-    return lambda wildcards, attempt: int(base * (1 + 0.5 * (attempt - 1)))
+    return _measured(rule, "runtime")
 
 
 def numcalc_step_mem_mb(wildcards, input, attempt):
@@ -204,45 +226,48 @@ def numcalc_step_runtime_min(wildcards, input, attempt):
 def solved_variants(subject: str) -> list[str]:
     """The heads whose HRTFs are solved for a subject: the reference head when the dataset has no reference
     HRIRs (config localisation.reference_sofa), and every evaluation condition (the PPM head first)."""
-    given = (DATA_ROOT / subject / config["localisation"]["reference_sofa"]).is_file()
+    given = given_reference_sofa(subject).is_file()
     return ([] if given else ["reference"]) + evaluation_conditions(subject)
+
+
+def _embedded_costs(projects) -> list | None:
+    """(dense cost model estimate, number of frequencies) of each exported project, or None before the export
+    (dry run)."""
+    from mesh2hrtf_io.bem import estimate_cost
+    from mesh2hrtf_io.project_reader import read_project
+
+    costs = []
+    for project in projects:
+        if not (Path(project) / "parameters.json").is_file():
+            return None
+        solved = read_project(project)
+        costs.append((estimate_cost(len(solved.vertices_m), len(solved.faces), len(solved.evaluation_points_m)),
+                      len(solved.frequencies_hz)))
+    return costs
 
 
 def embedded_runtime_min(wildcards, input, attempt):
     """Wall-clock request (minutes) of a subject's embedded-solver job from the dense cost model: 3 x the predicted
     seconds of every frequency of every head + 5 min of numba compilation (at least 10 min); +50 % per retry. Before
     the export (dry run): config hrtf.step_runtime_min per frequency."""
-    from mesh2hrtf_io.bem import estimate_cost
-    from mesh2hrtf_io.project_reader import read_project
-
-    seconds = 300.0
-    for project in input.projects:
-        if not (Path(project) / "parameters.json").is_file():
-            return int(config["hrtf"]["step_runtime_min"] * len(hrtf_frequencies()))
-        solved = read_project(project)
-        cost = estimate_cost(len(solved.vertices_m), len(solved.faces), len(solved.evaluation_points_m))
-        seconds += 3.0 * cost.seconds_per_frequency * len(solved.frequencies_hz)
+    costs = _embedded_costs(input.projects)
+    if costs is None:
+        return int(config["hrtf"]["step_runtime_min"] * len(hrtf_frequencies()))
+    seconds = 300.0 + sum(3.0 * cost.seconds_per_frequency * n for cost, n in costs)
     return max(10, int(round(seconds / 60.0 * (1 + 0.5 * (attempt - 1)))))
 
 
 def embedded_mem_mb(wildcards, input):
     """Memory of the embedded solver (its largest head, one at a time) from its dense-operator model."""
-    from mesh2hrtf_io.bem import estimate_cost
-    from mesh2hrtf_io.project_reader import read_project
-
-    largest = 0.0
-    for project in input.projects:
-        if not (Path(project) / "parameters.json").is_file():  # not exported yet (dry run)
-            return 4096
-        solved = read_project(project)
-        cost = estimate_cost(len(solved.vertices_m), len(solved.faces), len(solved.evaluation_points_m))
-        largest = max(largest, cost.memory_gb_per_frequency)
-    return int(1024 * largest * 1.3) + 1500
+    costs = _embedded_costs(input.projects)
+    if costs is None:
+        return 4096
+    return int(1024 * max(cost.memory_gb_per_frequency for cost, _ in costs) * 1.3) + 1500
 
 
 def reference_sofa(wildcards):
     """The reference listener's HRIRs: the dataset's own SOFA file when present, else computed."""
-    given = DATA_ROOT / wildcards.subject / config["localisation"]["reference_sofa"]
+    given = given_reference_sofa(wildcards.subject)
     if given.is_file():
         return str(given)
     return f"results/{wildcards.subject}/hrtf/reference/HRIR.sofa"
@@ -280,11 +305,10 @@ def evaluation_report_inputs(wildcards) -> dict:
         inputs[f"{subject}_localisation"] = f"results/{subject}/localisation/qe_pe.json"
         inputs[f"{subject}_target"] = f"results/{subject}/target/pinna_target.ply"
         for condition in evaluation_conditions(subject):
-            wc = type("Wildcards", (), {"subject": subject, "variant": condition})
             inputs[f"{subject}_{condition}_distances"] = f"results/{subject}/evaluation/{condition}/distances.json"
             inputs[f"{subject}_{condition}_hrtf"] = f"results/{subject}/hrtf/{condition}/HRTF.sofa"
-            inputs[f"{subject}_{condition}_head"] = hrtf_head_mesh(wc)
-            inputs[f"{subject}_{condition}_steps"] = solved_steps(wc)
+            inputs[f"{subject}_{condition}_head"] = head_mesh_of(subject, condition)
+            inputs[f"{subject}_{condition}_steps"] = steps_of(subject, condition)
     return inputs
 
 

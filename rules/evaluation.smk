@@ -6,7 +6,7 @@
 rule condition_distances:
     input:
         target="results/{subject}/target/pinna_target.ply",
-        pinna=lambda wc: hrtf_head_mesh(type("Wildcards", (), {"subject": wc.subject, "variant": wc.condition})),
+        pinna=lambda wc: head_mesh_of(wc.subject, wc.condition),
     output:
         summary="results/{subject}/evaluation/{condition}/distances.json",
         points="results/{subject}/evaluation/{condition}/distances.npz",

@@ -58,8 +58,7 @@ rule solve_embedded:
         "benchmarks/timings/hrtf/solve_embedded/{subject}.tsv"
     params:
         variants=lambda wc: solved_variants(wc.subject),
-        stores=lambda wc: {v: step_store(type("Wildcards", (), {"subject": wc.subject, "variant": v}))
-                           for v in solved_variants(wc.subject)},
+        stores=lambda wc: {v: store_of(wc.subject, v) for v in solved_variants(wc.subject)},
     threads: config["hrtf"]["embedded_threads"]
     resources:
         mem_mb=embedded_mem_mb,

@@ -11,7 +11,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from reporting.resources import DEFAULT_FILE, requests, rule_peaks, write_peaks  # noqa: E402
+from reporting.resources import DEFAULT_FILE, MODELLED, requests, rule_peaks, write_peaks  # noqa: E402
 
 
 def main(argv: list[str]) -> int:
@@ -34,7 +34,7 @@ def main(argv: list[str]) -> int:
         from reporting.slurm_accounting import sacct_jobs  # noqa: PLC0415
 
         for job in sacct_jobs(since):
-            if job["rule"] in ("unknown", "solve_numcalc_step") or job["state"] != "COMPLETED":
+            if job["rule"] == "unknown" or job["rule"] in MODELLED or job["state"] != "COMPLETED":
                 continue
             row = peaks.setdefault(job["rule"], {"max_rss_mb": 0.0, "seconds": 0.0, "jobs": 0})
             row["max_rss_mb"] = round(max(row["max_rss_mb"], job["max_rss_mb"]), 1)

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import dataclasses
 import logging
+import os
 import time
 
 import numpy as np
@@ -35,9 +36,48 @@ EAR_SEGMENT = 1  # domain index of the vibrating (ear) elements
 REGULAR_QUADRATURE_ORDER = 2
 
 
+#: bempp-cl backends, fastest first. OpenCL runs on the CPU through pocl (pip: pyopencl, pocl-binary-distribution):
+#: on the 1187-vertex demo head it assembles a frequency in 5.5 s on 2 threads against numba's 9.4 s, and builds
+#: its kernels in ~40 s against numba's ~100-130 s of compilation in every process (benchmarks/demo_run.py).
+DEVICES = ("opencl", "numba")
+_device_state: dict[str, object] = {"device": None}
+
+
+def opencl_cpu_available() -> bool:
+    """True when pyopencl imports and offers a CPU device (pocl's, or a vendor driver)."""
+    try:
+        import pyopencl  # noqa: PLC0415
+        return any(device.type & pyopencl.device_type.CPU
+                   for platform in pyopencl.get_platforms() for device in platform.get_devices())
+    except Exception:  # noqa: BLE001 - no pyopencl, no ICD loader, no platform: numba it is
+        return False
+
+
+def use_device(device: str = "auto", threads: int | None = None) -> str:
+    """Choose bempp-cl's backend ('auto': OpenCL on a CPU device when available, else numba) and its threads
+    (None: all cores); call before the first solve of the process. Returns the backend chosen."""
+    if device not in ("auto", *DEVICES):
+        raise Mesh2HrtfIoError(f"embedded device must be one of auto, {', '.join(DEVICES)}; got {device!r}")
+    chosen = ("opencl" if opencl_cpu_available() else "numba") if device == "auto" else device
+    if chosen == "opencl" and not opencl_cpu_available():
+        raise Mesh2HrtfIoError("embedded device 'opencl' asked for, but pyopencl has no CPU device: "
+                               "pip install pyopencl pocl-binary-distribution, or use 'numba'")
+    if threads:
+        import numba  # noqa: PLC0415
+
+        numba.set_num_threads(max(1, min(int(threads), numba.config.NUMBA_NUM_THREADS)))
+        os.environ["POCL_MAX_PTHREAD_COUNT"] = str(int(threads))  # read when pocl starts its first context
+    _device_state["device"] = chosen
+    bempp = _bempp()
+    bempp.DEFAULT_DEVICE_INTERFACE = chosen
+    log.info("embedded solver: bempp-cl on %s%s", chosen, f", {threads} thread(s)" if threads else "")
+    return chosen
+
+
 def _bempp():
-    """bempp-cl's API with the numba backend, its import chatter (a missing Gmsh, which we never use) and
-    per-operator timing lines silenced, and its import-time temporary folder removed at exit."""
+    """bempp-cl's API with the chosen backend (:func:`use_device`; by default the fastest available), its
+    import chatter (a missing Gmsh, which we never use), OpenCL compiler notes and per-operator timing lines
+    silenced, and its import-time temporary folder removed at exit."""
     import atexit  # noqa: PLC0415
     import contextlib  # noqa: PLC0415
     import io  # noqa: PLC0415
@@ -49,7 +89,15 @@ def _bempp():
     except ImportError as exc:  # pragma: no cover - depends on the installation
         raise Mesh2HrtfIoError("the embedded solver needs bempp-cl: pip install bempp-cl") from exc
     if not getattr(bempp, "_ppm_configured", False):
-        bempp.DEFAULT_DEVICE_INTERFACE = "numba"
+        import warnings  # noqa: PLC0415
+
+        warnings.filterwarnings("ignore", message="Non-empty compiler output")  # pyopencl's CompilerWarning
+        # pocl's compiler would print "66 warnings generated." for every kernel build of bempp-cl: '-w' (an
+        # OpenCL build option) keeps its warnings, which are about bempp-cl's sources, out of the user's terminal
+        os.environ.setdefault("PYOPENCL_BUILD_OPTIONS", "-w")
+        if _device_state["device"] is None:
+            _device_state["device"] = "opencl" if opencl_cpu_available() else "numba"
+        bempp.DEFAULT_DEVICE_INTERFACE = _device_state["device"]
         bempp.GLOBAL_PARAMETERS.quadrature.regular = REGULAR_QUADRATURE_ORDER
         atexit.register(shutil.rmtree, bempp.TMP_PATH, True)
         bempp._ppm_configured = True

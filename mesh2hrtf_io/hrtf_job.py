@@ -76,21 +76,21 @@ def solve_numcalc_steps(project: str | os.PathLike, source: int, steps, status_p
 
 
 def solve_embedded(projects: dict[str, str | os.PathLike], status_path: str | os.PathLike,
-                   stores: dict[str, str | os.PathLike | None] | None = None, threads: int | None = None) -> None:
+                   stores: dict[str, str | os.PathLike | None] | None = None, threads: int | None = None,
+                   device: str = "auto") -> None:
     """Solve every missing step of several projects (e.g. a subject's reference and PPM heads, by name) with
     the embedded solver in this one process, so that numba compiles bempp-cl's kernels once for all of them;
     write a summary JSON per project (steps solved and restored, seconds per step and per frequency, the first
     including the kernel compilation) and the job's total seconds. With ``stores`` (name -> folder), stored steps are restored first and
-    solved ones copied there. ``threads``: numba threads for the assembly (default: numba's)."""
+    solved ones copied there. ``threads``: threads of the assembly (default: all cores); ``device``: bempp-cl's
+    backend, 'auto' (OpenCL on the CPU when pyopencl has a device, else numba), 'opencl' or 'numba'."""
     import time  # noqa: PLC0415
 
+    from .bem import use_device  # noqa: PLC0415
     from .embedded import solve_project_embedded  # noqa: PLC0415
     from .step_store import project_fingerprint, restore_step, save_step  # noqa: PLC0415
 
-    if threads:
-        import numba  # noqa: PLC0415
-
-        numba.set_num_threads(max(1, min(int(threads), numba.config.NUMBA_NUM_THREADS)))
+    device = use_device(device, threads)
     stores = stores or {}
     start = time.perf_counter()
     summaries = {}
@@ -111,7 +111,7 @@ def solve_embedded(projects: dict[str, str | os.PathLike], status_path: str | os
         summaries[name] = {"project": str(project), **summary}
     write_text_atomic(status_path, json.dumps({"projects": summaries,
                                                "seconds": round(time.perf_counter() - start, 2),
-                                               "threads": threads}, indent=2) + "\n")
+                                               "threads": threads, "device": device}, indent=2) + "\n")
 
 
 def collect(project: str | os.PathLike, hrtf_path: str | os.PathLike, hrir_path: str | os.PathLike,

@@ -58,12 +58,19 @@ def _align(args: argparse.Namespace) -> None:
     import json
 
     from .align import AlignSettings, align, prepare_target
+    from .align.any_pose import align_any_pose
     from .align.report import write_alignment
 
     model = _model(args)
-    target = prepare_target(args.target, side=args.side, margin_mm=args.margin_mm, segment=not args.no_segment)
-    result = align(model, target, AlignSettings())
-    summary = write_alignment(args.out, model, target, result)
+    target = prepare_target(args.target, side=args.side, margin_mm=args.margin_mm, segment=not args.no_segment,
+                            scan_pose=args.scan_pose)
+    if target.pose is not None:  # the PPM decides between rigid poses that fit about equally
+        result, target = align_any_pose(model, target, AlignSettings())
+        extra = {"scan_to_project": target.pose["matrix"], "mirrored": target.pose["mirrored"],
+                 "unit": target.pose["unit"]}
+    else:
+        result, extra = align(model, target, AlignSettings()), None
+    summary = write_alignment(args.out, model, target, result, extra=extra)
     print(json.dumps(summary["distance_target_to_ppm"]))
     for warning in summary["warnings"]:
         print(f"ppm: warning: {warning}", file=sys.stderr)
@@ -117,6 +124,9 @@ def main(argv: list[str] | None = None) -> int:
     fit.add_argument("target", help="pinna scan (PLY/STL/OBJ, mm, +x front, +y left, +z up)")
     fit.add_argument("--out", required=True, help="output folder")
     fit.add_argument("--side", choices=("left", "right"), default="left", help="which ear the scan holds")
+    fit.add_argument("--scan-pose", choices=("project_frame", "any"), default="project_frame",
+                     help="any: the scan may have any orientation, offset, unit (mm/cm/m) and side; its pose is "
+                          "found, or the scan is refused with the reason (--side is then ignored)")
     fit.add_argument("--margin-mm", type=float, default=3.0, help="skin ring kept around the detected pinna, mm")
     fit.add_argument("--no-segment", action="store_true", help="the scan is the pinna alone: do not cut it out")
     fit.add_argument("--template", default=None, help="template folder (default: the packaged one)")

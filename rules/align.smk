@@ -25,6 +25,7 @@ rule prepare_target:
 rule align_ppm:
     input:
         target="results/{subject}/target/pinna_target.ply",
+        report="results/{subject}/target/target.json",
         template=align_template,
     output:
         parameters_csv="results/{subject}/align/parameters.csv",

@@ -59,6 +59,7 @@ rule solve_embedded:
     params:
         variants=lambda wc: solved_variants(wc.subject),
         stores=lambda wc: {v: store_of(wc.subject, v) for v in solved_variants(wc.subject)},
+        device=config["hrtf"].get("embedded_device", "auto"),
     threads: config["hrtf"]["embedded_threads"]
     resources:
         mem_mb=embedded_mem_mb,

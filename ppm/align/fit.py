@@ -273,7 +273,8 @@ def global_pose(model: PinnaModel, target: Target, settings: AlignSettings) -> t
             best = (score, matrix, index)
     values = parent_pose_from_rigid(best[1], head)
     params = PinnaParameters.from_dict(values, out_of_range="clip")
-    warnings = [f"{name} = {value:.1f} is outside its range and was clamped; is the scan in the project frame?"
+    warnings = [f"{name} = {value:.1f} is outside its range and was clamped; is the scan in the project frame? "
+                "If not, prepare it with scan_pose 'any' (config align.scan_pose, ppm align --scan-pose any)"
                 for name, value in values.items() if params[name] != value]
     return params, best[2], warnings
 

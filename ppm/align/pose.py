@@ -7,6 +7,7 @@ rotation mode 'ZYX' (Z applied first) and S the diagonal of the scales.
 from __future__ import annotations
 
 import numpy as np
+import trimesh
 
 
 def rotation_zyx(angles_deg: np.ndarray) -> np.ndarray:
@@ -36,3 +37,11 @@ def parent_pose_from_rigid(matrix: np.ndarray, head_mm: np.ndarray) -> dict[str,
     values = {f"Location_Size-Bendy_{a}": float(v) for a, v in zip("XYZ", location)}
     values.update({f"Rotation_Size-Bendy_{a}": float(v) for a, v in zip("XYZ", angles)})
     return values
+
+
+def apply_similarity(mesh: trimesh.Trimesh, matrix: np.ndarray) -> trimesh.Trimesh:
+    """The mesh moved by a (4, 4) similarity (rotation, uniform scale, offset, possibly a reflection); a
+    reflection flips the faces so that the normals stay outward."""
+    vertices = trimesh.transform_points(mesh.vertices, matrix)
+    faces = mesh.faces[:, ::-1] if np.linalg.det(matrix[:3, :3]) < 0 else mesh.faces
+    return trimesh.Trimesh(vertices, np.ascontiguousarray(faces), process=False)

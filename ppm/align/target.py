@@ -43,6 +43,9 @@ class Target:
         Where it came from.
     warnings : tuple of str
         Problems found that did not stop the preparation (they go into the fit's summary).
+    pose : dict or None
+        For a scan given in any pose: how it was brought into the project frame (unit, mirrored, the
+        (4, 4) similarity scan -> project frame as nested lists, confidence); None for a project-frame scan.
     """
 
     points_mm: np.ndarray
@@ -50,6 +53,7 @@ class Target:
     mesh: trimesh.Trimesh
     source: str
     warnings: tuple[str, ...] = ()
+    pose: dict | None = None
 
 
 def remove_outliers(points_mm: np.ndarray, neighbours: int = 8) -> np.ndarray:
@@ -85,7 +89,7 @@ def hole_share(mesh: trimesh.Trimesh) -> float:
 
 
 def prepare_target(path: str | os.PathLike, side: str = "left", margin_mm: float = 3.0,
-                   segment: bool = True) -> Target:
+                   segment: bool = True, scan_pose: str = "project_frame") -> Target:
     """Load and prepare a pinna scan for alignment.
 
     Parameters
@@ -98,13 +102,23 @@ def prepare_target(path: str | os.PathLike, side: str = "left", margin_mm: float
         Width of the skin ring kept around the detected pinna (keep it under the template's 6 mm).
     segment : bool
         Cut the pinna out of a crop that holds head skin (False: use the whole mesh).
+    scan_pose : {'project_frame', 'any'}
+        'project_frame': the file is in mm in the head frame (checked, `side` says which ear); 'any': any
+        orientation, offset, unit and side, found by :func:`ppm.align.any_pose.find_pose` (`side` ignored).
 
     Raises
     ------
     PpmError
-        For unreadable, empty or NaN files, wrong units or side, or a mesh that holds no pinna.
+        For unreadable, empty or NaN files, wrong units or side, or a mesh that holds no pinna;
+        :class:`ppm.align.any_pose.PoseUncertainError` when the pose of an 'any' scan cannot be told.
     """
-    mesh = load_left_pinna(path, side)
+    pose = None
+    if scan_pose == "any":
+        mesh, pose = scan_in_project_frame(path)
+    elif scan_pose == "project_frame":
+        mesh = load_left_pinna(path, side)
+    else:
+        raise PpmError(f"scan_pose must be 'project_frame' or 'any', got {scan_pose!r}")
     mesh.remove_unreferenced_vertices()
     if segment:
         try:
@@ -112,7 +126,26 @@ def prepare_target(path: str | os.PathLike, side: str = "left", margin_mm: float
         except PpmError as exc:
             raise PpmError(f"{path}: {exc}") from exc
         mesh = crop_to_region(mesh, region)
-    return target_from_mesh(mesh, str(path))
+    target = target_from_mesh(mesh, str(path))
+    if pose is None:
+        return target
+    found = [f"pose found: {pose['unit']}, {'a right ear, mirrored' if pose['mirrored'] else 'a left ear'}, "
+             f"next other pose {pose['runner_up_ratio']:g}x worse"]
+    return dataclasses.replace(target, warnings=tuple(found) + target.warnings, pose=pose)
+
+
+def scan_in_project_frame(path: str | os.PathLike) -> tuple[trimesh.Trimesh, dict]:
+    """A scan in any pose, unit and side moved onto the packaged template (mm, project frame, left ear),
+    and the pose's description (see :class:`ppm.align.any_pose.ScanPose`)."""
+    from ..mesh_io import load_mesh  # noqa: PLC0415
+    from ..template.store import load_template  # noqa: PLC0415
+    from .any_pose import find_pose  # noqa: PLC0415
+    from .pose import apply_similarity  # noqa: PLC0415
+
+    mesh = load_mesh(path)
+    template = load_template(None)
+    pose = find_pose(mesh, trimesh.Trimesh(template.vertices_mm, template.faces, process=False), str(path))
+    return apply_similarity(mesh, pose.matrix), {**pose.summary(), "matrix": pose.matrix.round(9).tolist()}
 
 
 def target_from_mesh(mesh: trimesh.Trimesh, source: str) -> Target:
@@ -151,6 +184,8 @@ def write_target(target: Target, mesh_path: str | os.PathLike, report_path: str 
     report = {"source": target.source, "n_points": int(len(target.points_mm)),
               "n_mesh_vertices": int(len(target.mesh.vertices)), "hole_share": round(hole_share(target.mesh), 4),
               "extent_mm": np.ptp(target.points_mm, axis=0).round(2).tolist(), "warnings": list(target.warnings)}
+    if target.pose is not None:
+        report["pose"] = target.pose
     write_mesh(mesh_path, target.mesh.vertices, target.mesh.faces)
     write_text_atomic(report_path, json.dumps(report, indent=2) + "\n")
     return report

@@ -23,10 +23,12 @@ def rigid_align(source_mm: np.ndarray, target: trimesh.Trimesh, iterations: int 
     return matrix
 
 
-def nonrigid_register(source: trimesh.Trimesh, target: trimesh.Trimesh) -> np.ndarray:
-    """Vertices (n, 3) of `source` deformed onto `target` by non-rigid ICP (same vertex order, mm)."""
+def nonrigid_register(source: trimesh.Trimesh, target: trimesh.Trimesh,
+                      steps: tuple[tuple[float, float, float, int], ...] = NRICP_STEPS) -> np.ndarray:
+    """Vertices (n, 3) of `source` deformed onto `target` by non-rigid ICP (same vertex order, mm), with the
+    stiffness schedule `steps` (see NRICP_STEPS)."""
     return np.asarray(
-        nricp_amberg(source, target, steps=NRICP_STEPS, distance_threshold=NRICP_MAX_DISTANCE_MM,
+        nricp_amberg(source, target, steps=steps, distance_threshold=NRICP_MAX_DISTANCE_MM,
                      use_faces=True, use_vertex_normals=True)
     )
 

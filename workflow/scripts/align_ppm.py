@@ -11,7 +11,11 @@ configure_logging(snakemake)  # noqa: F821
 
 import bpy  # noqa: E402,F401  (before anything that may load pymeshlab)
 
+import dataclasses  # noqa: E402
+import json  # noqa: E402
+
 from ppm.align import AlignSettings, align, prepare_target  # noqa: E402
+from ppm.align.any_pose import align_any_pose  # noqa: E402
 from ppm.align.report import one_sided_distances_mm, write_alignment  # noqa: E402
 from ppm.model import PinnaModel  # noqa: E402
 from ppm.render import render_distance_map  # noqa: E402
@@ -20,9 +24,16 @@ out_dir = Path(snakemake.output.summary).parent  # noqa: F821
 model = PinnaModel.from_template(Path(snakemake.input.template).parent)  # noqa: F821
 target = prepare_target(snakemake.input.target, side="left", segment=False)  # noqa: F821  (prepared already)
 global_pose_only = bool(snakemake.params.get("global_pose_only", False))  # noqa: F821
-result = align(model, target, AlignSettings(stages=()) if global_pose_only else None)
+report = snakemake.input.get("report")  # noqa: F821
+pose = json.loads(Path(report).read_text(encoding="utf-8")).get("pose") if report else None
+if pose is not None and not global_pose_only:  # a scan given in any pose: the PPM decides between close poses
+    result, target = align_any_pose(model, dataclasses.replace(target, pose=pose))
+else:
+    result = align(model, target, AlignSettings(stages=()) if global_pose_only else None)
 write_alignment(out_dir, model, target, result, extra={"template": snakemake.input.template,  # noqa: F821
-                                                       "global_pose_only": global_pose_only})
+                                                       "global_pose_only": global_pose_only,
+                                                       **({"scan_to_project": target.pose["matrix"],
+                                                           "mirrored": target.pose["mirrored"]} if pose else {})})
 distance = one_sided_distances_mm(target, result.vertices_mm, model.faces)
 render_distance_map(target.points_mm, None, distance, snakemake.output.picture,  # noqa: F821
                     f"{snakemake.wildcards.subject}: scan -> {'placed default' if global_pose_only else 'aligned'} PPM")  # noqa: F821

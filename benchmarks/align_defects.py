@@ -1,0 +1,219 @@
+"""Benchmark: PPM alignment on defective scans of real ears, from the head frame and from any pose, against
+free-form non-rigid ICP, both measured against the CLEAN ear (the ground truth).
+
+For every SONICOM subject, its clean left crop is the truth. `ppm.align.defects` makes defective scans of
+it at graded levels (scanner occlusion holes, coarser sampling, noise, outliers and spikes, a partial crop;
+ppm/data/scan_defects.yaml). Each scan is fitted
+  * by the PPM (template built without the subject), the scan in the head frame;
+  * by NRICP (trimesh's Amberg, the same template, rigid ICP first) onto the same prepared scan, with the
+    stiffness schedule that is best for these scans: every schedule of SCHEDULES is tried at the hardest
+    level and the one with the smallest truth distance (mean of median and p95 over subjects) is used;
+  * at the hardest level, by the PPM again from --poses random poses of the same scan (uniform rotation,
+    offset up to 300 mm, unit mm / cm / m, every second one mirrored into a right ear), through the
+    workflow's own path (`prepare_target(..., scan_pose="any")`, a PLY file on disk).
+Distance to the truth: every truth point (pinna + 3 mm skin ring of the clean crop) to the fitted surface,
+and every fitted vertex whose closest truth point lies >= 1 mm from the truth's edge to the truth surface;
+the two directions pooled give the median and p95 (mm). A posed fit succeeds when it finds the unit and side,
+and, mapped back into the head frame, its surface lies within 1 mm (median, both ways) of the head-frame fit
+of the same scan (the vertex-to-vertex gap, which also counts vertices sliding along the surface, is printed).
+
+Run: .venv/bin/python benchmarks/align_defects.py [--poses 4] [--subjects P039 P067 P143]
+Prints readable lines, then one JSON line.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import tempfile
+import time
+from pathlib import Path
+
+import bpy  # noqa: F401  (before pymeshlab)
+import numpy as np
+import trimesh
+
+from align_real import loo_template
+from ppm.align import align, prepare_target
+from ppm.align.any_pose import PoseUncertainError, align_any_pose
+from ppm.align.defects import defective_scan, levels, random_pose
+from ppm.align.pose import apply_similarity
+from ppm.align.report import one_sided_distances_mm, reverse_distances_mm
+from ppm.align.target import Target, remove_outliers
+from ppm.model import PinnaModel
+from ppm.template.register import NRICP_STEPS, nonrigid_register, rigid_align
+
+ROOT = Path(__file__).resolve().parents[1]
+#: NRICP stiffness schedules tried (stiff to supple): ending after 1 ... 4 of NRICP_STEPS' stages, and a
+#: schedule that goes on to a very supple last stage.
+SCHEDULES = {f"to_{steps[-1][0]:g}": steps for steps in (NRICP_STEPS[:k] for k in range(1, 5))}
+SCHEDULES["to_0.0007"] = NRICP_STEPS + ((0.0007, 0.0, 0.5, 10),)
+UNITS = ("mm", "cm", "m")
+
+
+def truth_distances(truth: Target, vertices_mm: np.ndarray, faces: np.ndarray) -> dict[str, float]:
+    """Both directions between a fitted surface and the clean truth (mm), and the two pooled."""
+    forward = one_sided_distances_mm(truth, vertices_mm, faces)
+    backward, counts = reverse_distances_mm(truth, vertices_mm, boundary_margin_mm=1.0)
+    pooled = np.concatenate([forward, backward[counts]])
+    return {"median_mm": float(np.median(pooled)), "p95_mm": float(np.percentile(pooled, 95)),
+            "truth_to_fit_median_mm": float(np.median(forward)), "truth_to_fit_p95_mm": float(np.percentile(forward, 95)),
+            "fit_to_truth_median_mm": float(np.median(backward[counts])),
+            "fit_to_truth_p95_mm": float(np.percentile(backward[counts], 95))}
+
+
+def scan_surface_without_outliers(target: Target) -> trimesh.Trimesh:
+    """The prepared scan's surface without the faces of the outlier vertices the PPM fit ignores too."""
+    keep = remove_outliers(target.mesh.vertices)
+    mesh = trimesh.Trimesh(target.mesh.vertices, target.mesh.faces[keep[target.mesh.faces].all(axis=1)],
+                           process=False)
+    mesh.remove_unreferenced_vertices()
+    return mesh
+
+
+def nricp_fit(template: trimesh.Trimesh, scan: trimesh.Trimesh, steps) -> tuple[np.ndarray, float]:
+    """Rigid ICP, then non-rigid ICP with `steps`: fitted vertices (mm) and seconds."""
+    start = time.perf_counter()
+    matrix = rigid_align(template.vertices, scan)
+    moved = trimesh.Trimesh(trimesh.transform_points(template.vertices, matrix), template.faces, process=False)
+    return nonrigid_register(moved, scan, steps), time.perf_counter() - start
+
+
+def fit_file(model: PinnaModel, mesh: trimesh.Trimesh, folder: Path, name: str, scan_pose: str):
+    """Write the scan to PLY and fit it through the workflow's path: (target in the chosen pose, result,
+    seconds). With scan_pose 'any' the pose is found and, where the rigid search left alternatives, decided by
+    the PPM fit (ppm.align.any_pose.align_any_pose)."""
+    path = folder / f"{name}.ply"
+    mesh.export(path)
+    start = time.perf_counter()
+    target = prepare_target(path, scan_pose=scan_pose)
+    if scan_pose == "any":
+        result, target = align_any_pose(model, target)
+    else:
+        result = align(model, target)
+    return target, result, time.perf_counter() - start
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--data-root", type=Path, default=ROOT.parent / "shared" / "data" / "sonicom")
+    parser.add_argument("--templates", type=Path, default=ROOT / "results" / "templates")
+    parser.add_argument("--cache", type=Path, default=ROOT / "results" / "benchmarks" / "templates")
+    parser.add_argument("--subjects", nargs="*", default=None)
+    parser.add_argument("--poses", type=int, default=4, help="random poses per subject at the hardest level")
+    parser.add_argument("--seed", type=int, default=19)
+    args = parser.parse_args()
+
+    subjects = args.subjects or sorted(p.name for p in args.data_root.iterdir()
+                                       if (p / "pinna_left_crop.ply").is_file())
+    grades = levels()
+    hardest = grades[-1]
+    rng = np.random.default_rng(args.seed)
+    rows: dict[str, dict[str, dict]] = {}
+    keep: dict[str, tuple[trimesh.Trimesh, Target]] = {}  # per subject: LOO template, clean truth
+    nricp_by_schedule: dict[str, list[dict]] = {name: [] for name in SCHEDULES}
+    pose_results, fit_seconds, nricp_seconds = [], [], []
+    work = Path(tempfile.mkdtemp(prefix="align_defects_"))
+    for subject in subjects:
+        crop = args.data_root / subject / "pinna_left_crop.ply"
+        model = PinnaModel.from_template(loo_template(args.data_root, subject, args.templates, args.cache))
+        template = model.mesh()
+        truth = prepare_target(crop)
+        clean = trimesh.load(crop, process=False)
+        rows[subject] = {}
+        keep[subject] = (template, truth)
+        for level in grades:
+            scan = defective_scan(clean, level, rng, posed=False)
+            target, result, seconds = fit_file(model, scan.mesh, work, f"{subject}_{level}", "project_frame")
+            ppm = truth_distances(truth, result.vertices_mm, model.faces)
+            surface = scan_surface_without_outliers(target)
+            tried = SCHEDULES if level == hardest else {}
+            for name, steps in tried.items():
+                vertices, nricp_time = nricp_fit(template, surface, steps)
+                nricp_by_schedule[name].append(truth_distances(truth, vertices, model.faces))
+                nricp_seconds.append(nricp_time)
+            rows[subject][level] = {"ppm": ppm, "scan_points": int(len(target.points_mm)),
+                                    "kept_share": round(scan.kept_share, 3), "fit_seconds": round(seconds, 1),
+                                    "_surface": surface}
+            print(f"{subject} {level}: scan {len(target.points_mm)} points ({100 * scan.kept_share:.0f} % of the "
+                  f"area seen); PPM to truth median {ppm['median_mm']:.3f} p95 {ppm['p95_mm']:.3f} mm "
+                  f"(truth->fit {ppm['truth_to_fit_median_mm']:.3f}/{ppm['truth_to_fit_p95_mm']:.3f}, fit->truth "
+                  f"{ppm['fit_to_truth_median_mm']:.3f}/{ppm['fit_to_truth_p95_mm']:.3f}), {seconds:.1f} s", flush=True)
+            if level != hardest:
+                continue
+            for index in range(args.poses):
+                unit, mirrored = UNITS[index % len(UNITS)], index % 2 == 1
+                truth_to_scan = random_pose(rng, unit, mirrored)
+                posed = apply_similarity(scan.mesh, truth_to_scan)
+                label = f"{subject} pose {index} ({unit}{', right ear' if mirrored else ''})"
+                try:
+                    posed_target, posed_result, seconds = fit_file(model, posed, work, f"{subject}_pose{index}", "any")
+                except PoseUncertainError as exc:
+                    print(f"{label}: refused: {exc}", flush=True)
+                    pose_results.append({"subject": subject, "success": False, "refused": str(exc)})
+                    continue
+                fit_seconds.append(seconds)
+                to_project = np.asarray(posed_target.pose["matrix"]) @ truth_to_scan
+                back = trimesh.transform_points(posed_result.vertices_mm, np.linalg.inv(to_project))
+                # where the posed fit's surface lies against the head-frame fit's surface (both ways); the
+                # vertices themselves may also slide along the surface (overlapping bone weights)
+                head_fit = trimesh.Trimesh(result.vertices_mm, model.faces, process=False)
+                posed_fit = trimesh.Trimesh(back, model.faces, process=False)
+                gap = float(np.median(np.concatenate([trimesh.proximity.closest_point(head_fit, back)[1],
+                                                      trimesh.proximity.closest_point(posed_fit, result.vertices_mm)[1]])))
+                slide = float(np.median(np.linalg.norm(back - result.vertices_mm, axis=1)))
+                posed_truth = truth_distances(truth, back, model.faces)
+                success = (gap < 1.0 and posed_target.pose["unit"] == unit
+                           and posed_target.pose["mirrored"] == mirrored)
+                pose_results.append({"subject": subject, "success": success, "gap_median_mm": round(gap, 3),
+                                     "vertex_gap_median_mm": round(slide, 3),
+                                     "unit": posed_target.pose["unit"], "mirrored": posed_target.pose["mirrored"],
+                                     "truth_median_mm": round(posed_truth["median_mm"], 3), "seconds": round(seconds, 1)})
+                print(f"{label}: found {posed_target.pose['unit']}, {'mirrored' if posed_target.pose['mirrored'] else 'left'}"
+                      f", next rigid pose {posed_target.pose['runner_up_ratio']}x worse; fit vs head-frame fit: surfaces "
+                      f"{gap:.3f} mm apart (median), vertices {slide:.3f} mm; to truth median {posed_truth['median_mm']:.3f} p95 {posed_truth['p95_mm']:.3f} mm,"
+                      f" {seconds:.1f} s -> {'ok' if success else 'FAILED'}", flush=True)
+
+    def badness(results: list[dict]) -> float:
+        return float(np.mean([r["median_mm"] + r["p95_mm"] for r in results]))
+
+    for name, results in nricp_by_schedule.items():
+        print(f"NRICP schedule {name} at {hardest}: truth median {np.mean([r['median_mm'] for r in results]):.3f}, "
+              f"p95 {np.mean([r['p95_mm'] for r in results]):.3f} mm (mean over subjects)")
+    best = min(nricp_by_schedule, key=lambda name: badness(nricp_by_schedule[name]))
+    print(f"NRICP: best schedule at {hardest} is {best}; used at every level")
+    for subject in subjects:
+        template, truth = keep[subject]
+        for level in grades:
+            row = rows[subject][level]
+            if level == hardest:
+                nricp = nricp_by_schedule[best][subjects.index(subject)]
+            else:
+                vertices, nricp_time = nricp_fit(template, row["_surface"], SCHEDULES[best])
+                nricp_seconds.append(nricp_time)
+                nricp = truth_distances(truth, vertices, template.faces)
+            row["nricp"] = nricp
+            del row["_surface"]
+            print(f"{subject} {level}: truth median / p95 (mm): PPM {row['ppm']['median_mm']:.3f} / "
+                  f"{row['ppm']['p95_mm']:.3f}, NRICP {nricp['median_mm']:.3f} / {nricp['p95_mm']:.3f}")
+
+    worst_ppm = max(subjects, key=lambda s: rows[s][hardest]["ppm"]["median_mm"])
+    worst_nricp = max(subjects, key=lambda s: rows[s][hardest]["nricp"]["median_mm"])
+    successes = [r["success"] for r in pose_results]
+    print(json.dumps({
+        "ppm_truth_median_mm": round(rows[worst_ppm][hardest]["ppm"]["median_mm"], 4),
+        "ppm_truth_p95_mm": round(max(rows[s][hardest]["ppm"]["p95_mm"] for s in subjects), 4),
+        "nricp_truth_median_mm": round(rows[worst_nricp][hardest]["nricp"]["median_mm"], 4),
+        "nricp_truth_p95_mm": round(max(rows[s][hardest]["nricp"]["p95_mm"] for s in subjects), 4),
+        "pose_success_rate": round(float(np.mean(successes)), 4) if successes else None,
+        "levels": grades, "subjects": subjects,
+        "seconds_per_fit": round(float(np.mean(fit_seconds)), 1) if fit_seconds else None,
+        "nricp_schedule": best, "nricp_seconds_per_fit": round(float(np.mean(nricp_seconds)), 1),
+        "poses": pose_results,
+        "per_subject": {s: {lv: {"ppm": {k: round(v, 4) for k, v in rows[s][lv]["ppm"].items()},
+                                 "nricp": {k: round(v, 4) for k, v in rows[s][lv]["nricp"].items()}}
+                            for lv in grades} for s in subjects},
+    }))
+
+
+if __name__ == "__main__":
+    main()

@@ -175,7 +175,11 @@ def test_cost_estimate_and_cli(tmp_path, capsys, monkeypatch):
 
 
 def test_missing_or_crashing_numcalc_is_a_clear_error(tmp_path, monkeypatch):
+    import mesh2hrtf_io.numcalc as numcalc_module
+
     monkeypatch.setenv("PATH", str(tmp_path))
+    # as on a machine where scripts/install_numcalc.sh never ran (this one may have NumCalc in .venv/bin)
+    monkeypatch.setattr(numcalc_module, "venv_numcalc", lambda: tmp_path / "venv" / "bin" / "NumCalc")
     with pytest.raises(NumCalcError, match="not on PATH"):
         find_numcalc()
     with pytest.raises(NumCalcError, match="not found or not executable"):

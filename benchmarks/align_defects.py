@@ -42,6 +42,7 @@ from ppm.align.report import one_sided_distances_mm, reverse_distances_mm
 from ppm.align.target import Target, remove_outliers
 from ppm.model import PinnaModel
 from ppm.template.register import NRICP_STEPS, nonrigid_register, rigid_align
+from ppm.template.segment import crop_to_region
 
 ROOT = Path(__file__).resolve().parents[1]
 #: NRICP stiffness schedules tried (stiff to supple): ending after 1 ... 4 of NRICP_STEPS' stages, and a
@@ -64,11 +65,7 @@ def truth_distances(truth: Target, vertices_mm: np.ndarray, faces: np.ndarray) -
 
 def scan_surface_without_outliers(target: Target) -> trimesh.Trimesh:
     """The prepared scan's surface without the faces of the outlier vertices the PPM fit ignores too."""
-    keep = remove_outliers(target.mesh.vertices)
-    mesh = trimesh.Trimesh(target.mesh.vertices, target.mesh.faces[keep[target.mesh.faces].all(axis=1)],
-                           process=False)
-    mesh.remove_unreferenced_vertices()
-    return mesh
+    return crop_to_region(target.mesh, remove_outliers(target.mesh.vertices))
 
 
 def nricp_fit(template: trimesh.Trimesh, scan: trimesh.Trimesh, steps) -> tuple[np.ndarray, float]:

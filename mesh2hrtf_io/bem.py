@@ -37,8 +37,9 @@ REGULAR_QUADRATURE_ORDER = 2
 
 
 #: bempp-cl backends, fastest first. OpenCL runs on the CPU through pocl (pip: pyopencl, pocl-binary-distribution):
-#: on the 1187-vertex demo head it assembles a frequency in 5.5 s on 2 threads against numba's 9.4 s, and builds
-#: its kernels in ~40 s against numba's ~100-130 s of compilation in every process (benchmarks/demo_run.py).
+#: on a 1,250-vertex sphere (both ears, 2 threads) it solves a frequency in 6.3 s against numba's 15.1 s, and its
+#: first frequency, kernel builds included, takes 53 s against numba's 129 s of compilation in every process
+#: (benchmarks/embedded_backends.py).
 DEVICES = ("opencl", "numba")
 _device_state: dict[str, object] = {"device": None}
 
@@ -53,13 +54,17 @@ def opencl_cpu_available() -> bool:
         return False
 
 
+def _fastest_device() -> str:
+    return "opencl" if opencl_cpu_available() else "numba"
+
+
 def use_device(device: str = "auto", threads: int | None = None) -> str:
     """Choose bempp-cl's backend ('auto': OpenCL on a CPU device when available, else numba) and its threads
     (None: all cores); call before the first solve of the process. Returns the backend chosen."""
     if device not in ("auto", *DEVICES):
         raise Mesh2HrtfIoError(f"embedded device must be one of auto, {', '.join(DEVICES)}; got {device!r}")
-    chosen = ("opencl" if opencl_cpu_available() else "numba") if device == "auto" else device
-    if chosen == "opencl" and not opencl_cpu_available():
+    chosen = _fastest_device() if device == "auto" else device
+    if device == "opencl" and not opencl_cpu_available():
         raise Mesh2HrtfIoError("embedded device 'opencl' asked for, but pyopencl has no CPU device: "
                                "pip install pyopencl pocl-binary-distribution, or use 'numba'")
     if threads:
@@ -96,7 +101,7 @@ def _bempp():
         # OpenCL build option) keeps its warnings, which are about bempp-cl's sources, out of the user's terminal
         os.environ.setdefault("PYOPENCL_BUILD_OPTIONS", "-w")
         if _device_state["device"] is None:
-            _device_state["device"] = "opencl" if opencl_cpu_available() else "numba"
+            _device_state["device"] = _fastest_device()
         bempp.DEFAULT_DEVICE_INTERFACE = _device_state["device"]
         bempp.GLOBAL_PARAMETERS.quadrature.regular = REGULAR_QUADRATURE_ORDER
         atexit.register(shutil.rmtree, bempp.TMP_PATH, True)

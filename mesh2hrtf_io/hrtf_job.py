@@ -79,10 +79,10 @@ def solve_embedded(projects: dict[str, str | os.PathLike], status_path: str | os
                    stores: dict[str, str | os.PathLike | None] | None = None, threads: int | None = None,
                    device: str = "auto") -> None:
     """Solve every missing step of several projects (e.g. a subject's reference and PPM heads, by name) with
-    the embedded solver in this one process, so that numba compiles bempp-cl's kernels once for all of them;
-    write a summary JSON per project (steps solved and restored, seconds per step and per frequency, the first
-    including the kernel compilation) and the job's total seconds. With ``stores`` (name -> folder), stored steps are restored first and
-    solved ones copied there. ``threads``: threads of the assembly (default: all cores); ``device``: bempp-cl's
+    the embedded solver in this one process, so that bempp-cl builds (OpenCL) or compiles (numba) its kernels
+    once for all of them; write a summary JSON per project (steps solved and restored, seconds per step and per
+    frequency, the first including the kernel builds) and the job's total seconds and backend. With ``stores``
+    (name -> folder), stored steps are restored first and solved ones copied there. ``threads``: threads of the assembly (default: all cores); ``device``: bempp-cl's
     backend, 'auto' (OpenCL on the CPU when pyopencl has a device, else numba), 'opencl' or 'numba'."""
     import time  # noqa: PLC0415
 

@@ -58,7 +58,7 @@ def _align(args: argparse.Namespace) -> None:
     import json
 
     from .align import AlignSettings, align, prepare_target
-    from .align.any_pose import align_any_pose
+    from .align.any_pose import align_any_pose, pose_summary
     from .align.report import write_alignment
 
     model = _model(args)
@@ -66,11 +66,9 @@ def _align(args: argparse.Namespace) -> None:
                             scan_pose=args.scan_pose)
     if target.pose is not None:  # the PPM decides between rigid poses that fit about equally
         result, target = align_any_pose(model, target, AlignSettings())
-        extra = {"scan_to_project": target.pose["matrix"], "mirrored": target.pose["mirrored"],
-                 "unit": target.pose["unit"]}
     else:
-        result, extra = align(model, target, AlignSettings()), None
-    summary = write_alignment(args.out, model, target, result, extra=extra)
+        result = align(model, target, AlignSettings())
+    summary = write_alignment(args.out, model, target, result, extra=pose_summary(target))
     print(json.dumps(summary["distance_target_to_ppm"]))
     for warning in summary["warnings"]:
         print(f"ppm: warning: {warning}", file=sys.stderr)

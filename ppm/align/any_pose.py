@@ -198,9 +198,8 @@ def find_pose(scan: trimesh.Trimesh, template: trimesh.Trimesh, source: str = "s
             basins.append(candidate)
     ratio = basins[1].score_mm2 / max(best.score_mm2, 1e-12) if len(basins) > 1 else np.inf
     alternatives = tuple(c for c in basins[1:] if c.score_mm2 < RESOLVE_RATIO * best.score_mm2)[:MAX_ALTERNATIVES]
-    side = "a right ear (mirrored)" if best.mirrored else "a left ear"
     log.info("%s: unit %s, %s, median %.2f mm, next other pose %.2fx worse (%d kept for the PPM to decide)", source,
-             unit, side, best.median_mm, ratio, len(alternatives))
+             unit, side_name(best.mirrored), best.median_mm, ratio, len(alternatives))
     if best.median_mm > MAX_MEDIAN_MM:
         raise PoseUncertainError(
             f"{source}: no pose of the template fits the scan (best median distance {best.median_mm:.2f} mm > "
@@ -208,18 +207,29 @@ def find_pose(scan: trimesh.Trimesh, template: trimesh.Trimesh, source: str = "s
     return ScanPose(best.matrix, unit, best.mirrored, best.median_mm, ratio, alternatives, tuple(candidates))
 
 
+def side_name(mirrored: bool) -> str:
+    """How a pose's side is told to the user."""
+    return "a right ear (mirrored)" if mirrored else "a left ear"
+
+
+def pose_summary(target) -> dict:
+    """What an alignment summary records of a target prepared in any pose (empty for a project-frame scan):
+    the (4, 4) similarity scan -> project frame, the unit and whether the scan was a right ear."""
+    if target.pose is None:
+        return {}
+    return {"scan_to_project": target.pose["matrix"], "mirrored": target.pose["mirrored"], "unit": target.pose["unit"]}
+
+
 def target_in_alternative_pose(target, alternative: dict):
     """The prepared target (project frame by its best rigid pose) moved into an alternative pose of
     ``target.pose['alternatives']``; its ``pose`` then describes that alternative."""
-    import dataclasses as _dataclasses  # noqa: PLC0415
-
     from .pose import apply_similarity  # noqa: PLC0415
     from .target import target_from_mesh  # noqa: PLC0415
 
     relative = np.asarray(alternative["matrix"]) @ np.linalg.inv(np.asarray(target.pose["matrix"]))
     moved = target_from_mesh(apply_similarity(target.mesh, relative), target.source)
     pose = {**target.pose, "matrix": alternative["matrix"], "mirrored": alternative["mirrored"], "alternatives": []}
-    return _dataclasses.replace(moved, warnings=target.warnings, pose=pose)
+    return dataclasses.replace(moved, warnings=target.warnings, pose=pose)
 
 
 def align_any_pose(model, target, settings=None):
@@ -243,7 +253,7 @@ def align_any_pose(model, target, settings=None):
         result = align(model, option, settings)
         median = float(np.median(one_sided_distances_mm(option, result.vertices_mm, model.faces)))
         log.info("%s: PPM fit as %s: median %.3f mm", target.source,
-                 "a right ear (mirrored)" if option.pose and option.pose["mirrored"] else "a left ear", median)
+                 side_name(bool(option.pose and option.pose["mirrored"])), median)
         fits.append((median, result, option))
     fits.sort(key=lambda fit: fit[0])
     # competitors are fits that land somewhere else on the scan; two rotations that converge to the same
@@ -258,7 +268,7 @@ def align_any_pose(model, target, settings=None):
         if float(np.median(trimesh.proximity.closest_point(best_surface, moved)[1])) > SAME_FIT_MM:
             competitors.append((median, option))
     if competitors and competitors[0][0] < FIT_AMBIGUITY_RATIO * best_median:
-        describe = ", ".join(f"{median:.3f} mm as {'a right' if option.pose['mirrored'] else 'a left'} ear"
+        describe = ", ".join(f"{median:.3f} mm as {side_name(option.pose['mirrored'])}"
                              for median, option in [(best_median, best_option), *competitors])
         raise PoseUncertainError(
             f"{target.source}: the PPM fits the scan about equally well in different poses (median distance "

@@ -18,6 +18,7 @@ import yaml
 from scipy.spatial.transform import Rotation
 
 from ..errors import PpmError
+from ..template.segment import crop_to_region
 from .pose import apply_similarity
 from .synthetic import add_scan_defects
 
@@ -98,10 +99,7 @@ def cut_partially(mesh: trimesh.Trimesh, share: float, rng: np.random.Generator)
     direction = np.array([np.cos(angle), 0.0, np.sin(angle)])
     along = mesh.vertices @ direction
     limit = along.max() - share * np.ptp(along)
-    keep = along <= limit
-    cut = trimesh.Trimesh(mesh.vertices, mesh.faces[keep[mesh.faces].all(axis=1)], process=False)
-    cut.remove_unreferenced_vertices()
-    return cut
+    return crop_to_region(mesh, along <= limit)
 
 
 def add_spikes(mesh: trimesh.Trimesh, share: float, rng: np.random.Generator) -> trimesh.Trimesh:
@@ -143,9 +141,7 @@ def defective_scan(clean: trimesh.Trimesh, level: str, rng: np.random.Generator,
     recipe = all_levels[level]
     scanner = recipe["scanner"]
     seen = visible_vertices(clean, scanner_views(scanner["views"], scanner["cone_deg"]), scanner["grazing_deg"])
-    faces = clean.faces[seen[clean.faces].all(axis=1)]
-    scan = trimesh.Trimesh(clean.vertices, faces, process=False)
-    scan.remove_unreferenced_vertices()
+    scan = crop_to_region(clean, seen)
     kept_share = float(scan.area / clean.area)
     scan = cut_partially(scan, recipe["partial_crop_share"], rng)
     scan = resample(scan, recipe["resample_mm"])

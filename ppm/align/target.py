@@ -129,8 +129,10 @@ def prepare_target(path: str | os.PathLike, side: str = "left", margin_mm: float
     target = target_from_mesh(mesh, str(path))
     if pose is None:
         return target
-    found = [f"pose found: {pose['unit']}, {'a right ear, mirrored' if pose['mirrored'] else 'a left ear'}, "
-             f"next other pose {pose['runner_up_ratio']:g}x worse"]
+    from .any_pose import side_name  # noqa: PLC0415
+
+    found = [f"pose found: {pose['unit']}, {side_name(pose['mirrored'])}, next other pose "
+             f"{pose['runner_up_ratio']:g}x worse"]
     return dataclasses.replace(target, warnings=tuple(found) + target.warnings, pose=pose)
 
 

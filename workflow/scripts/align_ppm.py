@@ -15,7 +15,7 @@ import dataclasses  # noqa: E402
 import json  # noqa: E402
 
 from ppm.align import AlignSettings, align, prepare_target  # noqa: E402
-from ppm.align.any_pose import align_any_pose  # noqa: E402
+from ppm.align.any_pose import align_any_pose, pose_summary  # noqa: E402
 from ppm.align.report import one_sided_distances_mm, write_alignment  # noqa: E402
 from ppm.model import PinnaModel  # noqa: E402
 from ppm.render import render_distance_map  # noqa: E402
@@ -32,8 +32,7 @@ else:
     result = align(model, target, AlignSettings(stages=()) if global_pose_only else None)
 write_alignment(out_dir, model, target, result, extra={"template": snakemake.input.template,  # noqa: F821
                                                        "global_pose_only": global_pose_only,
-                                                       **({"scan_to_project": target.pose["matrix"],
-                                                           "mirrored": target.pose["mirrored"]} if pose else {})})
+                                                       **pose_summary(target)})
 distance = one_sided_distances_mm(target, result.vertices_mm, model.faces)
 render_distance_map(target.points_mm, None, distance, snakemake.output.picture,  # noqa: F821
                     f"{snakemake.wildcards.subject}: scan -> {'placed default' if global_pose_only else 'aligned'} PPM")  # noqa: F821

@@ -34,6 +34,11 @@ EAR_SEGMENT = 1  # domain index of the vibrating (ear) elements
 #: the same (0.015 / 0.051 / 0.72 dB at 0.5 / 2 / 8 kHz with either order; tests/test_mesh2hrtf_io_bem.py);
 #: the singular (adjacent) pairs keep bempp's default order.
 REGULAR_QUADRATURE_ORDER = 2
+#: Order of bempp's singular (Sauter-Schwab) quadrature for element pairs that share a vertex, an edge or the element
+#: itself: 4 instead of bempp's 6. On the sphere against the series the largest error is the same to 0.001 dB
+#: (tests/test_mesh2hrtf_io_bem.py); the singular part is about half of each frequency's assembly at order 6 and
+#: a third of that at 4 (benchmarks/embedded_backends.py).
+SINGULAR_QUADRATURE_ORDER = 4
 
 
 #: bempp-cl backends, fastest first. OpenCL runs on the CPU through pocl (pip: pyopencl, pocl-binary-distribution):
@@ -41,6 +46,10 @@ REGULAR_QUADRATURE_ORDER = 2
 #: first frequency, kernel builds included, takes 53 s against numba's 129 s of compilation in every process
 #: (benchmarks/embedded_backends.py).
 DEVICES = ("opencl", "numba")
+#: bempp-cl modules whose numba functions take only arrays and can be cached on disk (numba's assembly kernels
+#: take other jitted functions as arguments and cannot)
+GRID_AND_SPACE_MODULES = ("bempp_cl.api.grid.grid", "bempp_cl.api.space.scalar_spaces", "bempp_cl.api.space.space",
+                          "bempp_cl.api.space.shapesets")
 _device_state: dict[str, object] = {"device": None}
 
 
@@ -104,10 +113,59 @@ def _bempp():
             _device_state["device"] = _fastest_device()
         bempp.DEFAULT_DEVICE_INTERFACE = _device_state["device"]
         bempp.GLOBAL_PARAMETERS.quadrature.regular = REGULAR_QUADRATURE_ORDER
+        bempp.GLOBAL_PARAMETERS.quadrature.singular = SINGULAR_QUADRATURE_ORDER
+        _keep_opencl_kernels()
+        _cache_grid_functions()
         atexit.register(shutil.rmtree, bempp.TMP_PATH, True)
         bempp._ppm_configured = True
     logging.getLogger("bempp").setLevel(logging.WARNING)  # its per-operator timing lines drown the progress
     return bempp
+
+
+def _cache_grid_functions() -> None:
+    """Let numba keep bempp-cl's compiled grid and space functions (element adjacency, the P1 degrees of freedom)
+    on disk, beside bempp-cl in the environment: they take only arrays, so the next process reuses their machine
+    code instead of compiling them again (benchmarks/embedded_backends.py, first frequency)."""
+    import importlib  # noqa: PLC0415
+
+    from numba.core.registry import CPUDispatcher  # noqa: PLC0415
+
+    for name in GRID_AND_SPACE_MODULES:
+        try:
+            module = importlib.import_module(name)
+        except ImportError:  # pragma: no cover - another bempp-cl layout: compile in every process as before
+            continue
+        for function in vars(module).values():
+            if isinstance(function, CPUDispatcher):
+                try:
+                    function.enable_caching()
+                except Exception as exc:  # noqa: BLE001 - a read-only environment: compile in every process
+                    log.debug("numba cannot cache %s: %s", function, exc)
+
+
+def _keep_opencl_kernels() -> None:
+    """Build each of bempp-cl's OpenCL kernels once per process. bempp-cl builds a kernel for every operator it
+    assembles, although the wavenumber reaches the kernel as an argument, not in its source or build options:
+    about 20 builds (0.1 s each, even from pyopencl's disk cache) per frequency. Kernels are kept by their source
+    file, build options and precision."""
+    try:
+        import bempp_cl.core.opencl_kernels as kernels  # noqa: PLC0415
+    except ImportError:  # pragma: no cover - bempp-cl without its OpenCL part
+        return
+    build = kernels.build_program
+    if getattr(build, "_ppm_kept", False):
+        return
+    built: dict[tuple, object] = {}
+
+    def build_once(assembly_function, options, precision, device_type="cpu"):
+        key = (assembly_function, tuple(sorted((name, repr(value)) for name, value in options.items())),
+               precision, device_type)
+        if key not in built:
+            built[key] = build(assembly_function, options, precision, device_type)
+        return built[key]
+
+    build_once._ppm_kept = True
+    kernels.build_program = build_once
 
 
 @dataclasses.dataclass(frozen=True)
@@ -163,7 +221,7 @@ def solve_sources(vertices_m: np.ndarray, faces: np.ndarray, sources: list[tuple
     import scipy.linalg  # noqa: PLC0415
 
     bempp = _bempp()
-    from bempp_cl.api.operators.boundary import helmholtz, sparse  # noqa: PLC0415
+    from bempp_cl.api.operators.boundary import helmholtz  # noqa: PLC0415
     from bempp_cl.api.operators.potential import helmholtz as helmholtz_potential  # noqa: PLC0415
 
     k = 2.0 * np.pi * frequency_hz / speed_of_sound_m_s
@@ -174,26 +232,25 @@ def solve_sources(vertices_m: np.ndarray, faces: np.ndarray, sources: list[tuple
         if np.any(segments[np.asarray(elements)]):
             raise Mesh2HrtfIoError("two sources share vibrating elements; give each ear its own elements")
         segments[np.asarray(elements)] = EAR_SEGMENT + index
-    grid = bempp.Grid(np.asarray(vertices_m, np.float64).T.copy(), np.asarray(faces, np.uint32).T.copy(),
-                      domain_indices=segments)
-    p1 = bempp.function_space(grid, "P", 1)
+    grid, p1 = _surface(bempp, vertices_m, faces, segments)
     coupling = 1j / k  # Burton-Miller coupling for outgoing e^{ikr} waves
     start = time.perf_counter()
-    lhs = (0.5 * sparse.identity(p1, p1, p1) - helmholtz.double_layer(p1, p1, p1, k)
-           + coupling * helmholtz.hypersingular(p1, p1, p1, k))
-    factors = scipy.linalg.lu_factor(lhs.weak_form().to_dense(), overwrite_a=True, check_finite=False)
+    system = (coupling * helmholtz.hypersingular(p1, p1, p1, k) - helmholtz.double_layer(p1, p1, p1, k)).weak_form().to_dense()
+    system += 0.5 * _p1_mass(grid, p1)
+    factors = scipy.linalg.lu_factor(system, overwrite_a=True, check_finite=False)
     points = np.asarray(points_m, np.float64).T.copy()
     double_layer_potential = helmholtz_potential.double_layer(p1, points, k)
     pressures = []
     for index, (_, velocity_m_s) in enumerate(sources):
         dp0 = bempp.function_space(grid, "DP", 0, segments=[EAR_SEGMENT + index])
         # Euler's equation with e^{-iωt}: dp/dn = iωρ v_n on the vibrating elements, 0 elsewhere (rigid)
-        neumann = bempp.GridFunction(dp0, coefficients=np.full(dp0.global_dof_count, 1j * 2.0 * np.pi * frequency_hz
-                                                               * density_kg_m3 * velocity_m_s, dtype=np.complex128))
-        rhs_operator = -(helmholtz.single_layer(dp0, p1, p1, k)
-                         + coupling * (0.5 * sparse.identity(dp0, p1, p1)
-                                       + helmholtz.adjoint_double_layer(dp0, p1, p1, k)))
-        coefficients = scipy.linalg.lu_solve(factors, (rhs_operator * neumann).projections(p1), check_finite=False)
+        normal_derivative = 1j * 2.0 * np.pi * frequency_hz * density_kg_m3 * velocity_m_s
+        neumann = bempp.GridFunction(dp0, coefficients=np.full(dp0.global_dof_count, normal_derivative,
+                                                               dtype=np.complex128))
+        rhs_operator = -(helmholtz.single_layer(dp0, p1, p1, k) + coupling * helmholtz.adjoint_double_layer(dp0, p1, p1, k))
+        rhs = (rhs_operator * neumann).projections(p1) - coupling * 0.5 * normal_derivative * _p1_load(
+            grid, p1, np.flatnonzero(segments == EAR_SEGMENT + index))
+        coefficients = scipy.linalg.lu_solve(factors, rhs, check_finite=False)
         if not np.isfinite(coefficients).all():
             raise Mesh2HrtfIoError(f"the BEM system at {frequency_hz:g} Hz is singular (degenerate mesh?)")
         surface_pressure = bempp.GridFunction(p1, coefficients=coefficients)
@@ -203,6 +260,46 @@ def solve_sources(vertices_m: np.ndarray, faces: np.ndarray, sources: list[tuple
     log.info("%.0f Hz: solved %d unknowns for %d source(s) in %.1f s", frequency_hz, p1.global_dof_count,
              len(sources), time.perf_counter() - start)
     return pressures
+
+
+def _p1_mass(grid, p1) -> np.ndarray:
+    """Dense Gram matrix of the P1 hat functions (m^2): on a triangle of area A, A/6 on the diagonal and A/12
+    off it. This is the weak form of bempp's sparse identity(P1, P1, P1), in closed form, without the numba
+    kernels whose compilation took about half of a process's first frequency."""
+    local = (np.full((3, 3), 1.0 / 12.0) + np.eye(3) / 12.0)[None] * grid.volumes[:, None, None]
+    dofs = p1.local2global
+    multipliers = p1.local_multipliers
+    mass = np.zeros((p1.global_dof_count, p1.global_dof_count))
+    np.add.at(mass, (dofs[:, :, None], dofs[:, None, :]), local * multipliers[:, :, None] * multipliers[:, None, :])
+    return mass
+
+
+def _p1_load(grid, p1, elements: np.ndarray) -> np.ndarray:
+    """Integral of each P1 hat function over the given elements (m^2): A/3 per corner of each triangle; the weak
+    form of identity(DP0, P1, P1) applied to 1 on those elements."""
+    load = np.zeros(p1.global_dof_count)
+    np.add.at(load, p1.local2global[elements].ravel(),
+              (p1.local_multipliers[elements] * grid.volumes[elements, None] / 3.0).ravel())
+    return load
+
+
+_surface_state: dict[str, object] = {"key": None, "surface": None}
+
+
+def _surface(bempp, vertices_m: np.ndarray, faces: np.ndarray, segments: np.ndarray):
+    """bempp's grid of the head (metres) and its P1 space, kept while the same head is solved frequency after
+    frequency: building the grid's geometry takes about a second on a demo head."""
+    import hashlib  # noqa: PLC0415
+
+    vertices = np.ascontiguousarray(vertices_m, np.float64)
+    triangles = np.ascontiguousarray(faces, np.uint32)
+    key = hashlib.blake2b(vertices.tobytes() + triangles.tobytes() + np.ascontiguousarray(segments).tobytes(),
+                          digest_size=16).hexdigest()
+    if _surface_state["key"] != key:
+        grid = bempp.Grid(vertices.T.copy(), triangles.T.copy(), domain_indices=segments)
+        _surface_state["surface"] = (grid, bempp.function_space(grid, "P", 1))
+        _surface_state["key"] = key
+    return _surface_state["surface"]
 
 
 def free_field_reference(points_m: np.ndarray, frequency_hz: float, source_area_m2: float,

@@ -118,8 +118,11 @@ def run_demo_on_slurm(root: Path, work: Path | None = None, stop_after: bool = T
         work = Path(scratch.name) / "project"
     try:
         _copy_workflow(root, work)
+        # the plugin's first status check of a job comes 40 s after submission, and the wait grows by 10 s per
+        # check that finds nothing finished: on a one-node test cluster running a chain of short jobs, that is most
+        # of the run; 5 s here (a shared cluster keeps the polite default of the profile)
         command = [sys.executable, "-m", "snakemake", "--profile", "profiles/slurm", "--configfile",
-                   "config/one_subject.yaml", "--latency-wait", "5"]
+                   "config/one_subject.yaml", "--latency-wait", "5", "--slurm-init-seconds-before-status-checks", "5"]
         since = time.strftime("%Y-%m-%dT%H:%M:%S")
         log(f"running the demo through SLURM in {work}")
         first = subprocess.Popen(command, cwd=work, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,

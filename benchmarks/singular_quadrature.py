@@ -1,4 +1,4 @@
-"""Benchmark: the order of the embedded solver's singular quadrature, against the rigid-sphere series.
+"""Benchmark: the order of the embedded solver's singular quadrature (bempp's default 4, pinned), against the rigid-sphere series.
 
 bempp-cl integrates element pairs that touch (same element, shared edge, shared vertex) with Sauter-Schwab
 quadrature of order 6 by default; the embedded solver uses SINGULAR_QUADRATURE_ORDER (4). This benchmark solves a

@@ -35,9 +35,8 @@ EAR_SEGMENT = 1  # domain index of the vibrating (ear) elements
 #: the singular (adjacent) pairs keep bempp's default order.
 REGULAR_QUADRATURE_ORDER = 2
 #: Order of bempp's singular (Sauter-Schwab) quadrature for element pairs that share a vertex, an edge or the element
-#: itself: 4 instead of bempp's 6. On the sphere against the series the largest error is the same to 0.001 dB
-#: (tests/test_mesh2hrtf_io_bem.py); the singular part is about half of each frequency's assembly at order 6 and
-#: a third of that at 4 (benchmarks/embedded_backends.py).
+#: itself: bempp's default, pinned here. Order 6 gives the sphere the same error against the series (2-20 kHz,
+#: benchmarks/singular_quadrature.py) at 2.7 times the cost; on a demo head the two differ by < 0.1 dB at 10 kHz.
 SINGULAR_QUADRATURE_ORDER = 4
 
 
@@ -72,15 +71,17 @@ def use_device(device: str = "auto", threads: int | None = None) -> str:
     (None: all cores); call before the first solve of the process. Returns the backend chosen."""
     if device not in ("auto", *DEVICES):
         raise Mesh2HrtfIoError(f"embedded device must be one of auto, {', '.join(DEVICES)}; got {device!r}")
-    chosen = _fastest_device() if device == "auto" else device
-    if device == "opencl" and not opencl_cpu_available():
-        raise Mesh2HrtfIoError("embedded device 'opencl' asked for, but pyopencl has no CPU device: "
-                               "pip install pyopencl pocl-binary-distribution, or use 'numba'")
     if threads:
         import numba  # noqa: PLC0415
 
         numba.set_num_threads(max(1, min(int(threads), numba.config.NUMBA_NUM_THREADS)))
-        os.environ["POCL_MAX_PTHREAD_COUNT"] = str(int(threads))  # read when pocl starts its first context
+        # pocl reads its thread count once, when pyopencl first lists the platforms (the device probe below):
+        # set before it, a 1-thread job on a 2-core machine uses one core instead of both
+        os.environ["POCL_MAX_PTHREAD_COUNT"] = str(int(threads))
+    chosen = _fastest_device() if device == "auto" else device
+    if device == "opencl" and not opencl_cpu_available():
+        raise Mesh2HrtfIoError("embedded device 'opencl' asked for, but pyopencl has no CPU device: "
+                               "pip install pyopencl pocl-binary-distribution, or use 'numba'")
     _device_state["device"] = chosen
     bempp = _bempp()
     bempp.DEFAULT_DEVICE_INTERFACE = chosen

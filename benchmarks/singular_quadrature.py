@@ -1,7 +1,7 @@
 """Benchmark: the order of the embedded solver's singular quadrature (bempp's default 4, pinned), against the rigid-sphere series.
 
 bempp-cl integrates element pairs that touch (same element, shared edge, shared vertex) with Sauter-Schwab
-quadrature of order 6 by default; the embedded solver uses SINGULAR_QUADRATURE_ORDER (4). This benchmark solves a
+quadrature of order 4 by default, which the embedded solver pins (SINGULAR_QUADRATURE_ORDER). This benchmark solves a
 642-vertex icosphere (radius 8.75 cm, 14 mm edges, one vibrating element) at 2-20 kHz with orders 6 and 4 on 400
 directions at 1.2 m and compares both with the analytic series: where the mesh resolves the wavelength both
 orders give the same error, and where it does not (above ~8 kHz for 14 mm edges) the mesh's own error is what

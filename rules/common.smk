@@ -1,4 +1,5 @@
 # Config validation, wildcard constraints and input functions (no rules here).
+import os
 from pathlib import Path
 
 from snakemake.utils import validate
@@ -293,8 +294,10 @@ def localisation_inputs(wildcards) -> dict:
 
 
 EVALUATION_FOLDER = config["evaluation"]["folder"]
-#: How the evaluation was configured, for its README (the configfiles given on the command line).
-EVALUATION_CONFIGFILES = [str(path) for path in workflow.overwrite_configfiles]
+#: How the evaluation was configured, for its README (the configfiles given on the command line, relative to the
+#: working directory where they lie in it: Snakemake keeps them absolute).
+EVALUATION_CONFIGFILES = [os.path.relpath(path) if Path(path).resolve().is_relative_to(Path.cwd().resolve()) else str(path)
+                          for path in workflow.overwrite_configfiles]
 
 
 def evaluation_report_inputs(wildcards) -> dict:

@@ -233,11 +233,12 @@ def solve_sources(vertices_m: np.ndarray, faces: np.ndarray, sources: list[tuple
         if np.any(segments[np.asarray(elements)]):
             raise Mesh2HrtfIoError("two sources share vibrating elements; give each ear its own elements")
         segments[np.asarray(elements)] = EAR_SEGMENT + index
-    grid, p1 = _surface(bempp, vertices_m, faces, segments)
+    grid, p1, mass = _surface(bempp, vertices_m, faces, segments)
     coupling = 1j / k  # Burton-Miller coupling for outgoing e^{ikr} waves
     start = time.perf_counter()
     system = (coupling * helmholtz.hypersingular(p1, p1, p1, k) - helmholtz.double_layer(p1, p1, p1, k)).weak_form().to_dense()
-    system += 0.5 * _p1_mass(grid, p1)
+    mass_rows, mass_columns, mass_values = mass
+    np.add.at(system, (mass_rows, mass_columns), 0.5 * mass_values)
     factors = scipy.linalg.lu_factor(system, overwrite_a=True, check_finite=False)
     points = np.asarray(points_m, np.float64).T.copy()
     double_layer_potential = helmholtz_potential.double_layer(p1, points, k)
@@ -263,16 +264,16 @@ def solve_sources(vertices_m: np.ndarray, faces: np.ndarray, sources: list[tuple
     return pressures
 
 
-def _p1_mass(grid, p1) -> np.ndarray:
-    """Dense Gram matrix of the P1 hat functions (m^2): on a triangle of area A, A/6 on the diagonal and A/12
-    off it. This is the weak form of bempp's sparse identity(P1, P1, P1), in closed form, without the numba
-    kernels whose compilation took about half of a process's first frequency."""
+def _p1_mass(grid, p1) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Gram matrix of the P1 hat functions (m^2) as (rows, columns, values) to be summed: on a triangle of area A,
+    A/6 on the diagonal and A/12 off it. This is the weak form of bempp's sparse identity(P1, P1, P1), in closed
+    form, without the numba kernels whose compilation took about half of a process's first frequency."""
     local = (np.full((3, 3), 1.0 / 12.0) + np.eye(3) / 12.0)[None] * grid.volumes[:, None, None]
     dofs = p1.local2global
     multipliers = p1.local_multipliers
-    mass = np.zeros((p1.global_dof_count, p1.global_dof_count))
-    np.add.at(mass, (dofs[:, :, None], dofs[:, None, :]), local * multipliers[:, :, None] * multipliers[:, None, :])
-    return mass
+    rows = np.broadcast_to(dofs[:, :, None], local.shape).ravel()
+    columns = np.broadcast_to(dofs[:, None, :], local.shape).ravel()
+    return rows, columns, (local * multipliers[:, :, None] * multipliers[:, None, :]).ravel()
 
 
 def _p1_load(grid, p1, elements: np.ndarray) -> np.ndarray:
@@ -288,8 +289,8 @@ _surface_state: dict[str, object] = {"key": None, "surface": None}
 
 
 def _surface(bempp, vertices_m: np.ndarray, faces: np.ndarray, segments: np.ndarray):
-    """bempp's grid of the head (metres) and its P1 space, kept while the same head is solved frequency after
-    frequency: building the grid's geometry takes about a second on a demo head."""
+    """bempp's grid of the head (metres), its P1 space and its mass terms (:func:`_p1_mass`), kept while the same
+    head is solved frequency after frequency: building the grid's geometry takes about a second on a demo head."""
     import hashlib  # noqa: PLC0415
 
     vertices = np.ascontiguousarray(vertices_m, np.float64)
@@ -298,7 +299,8 @@ def _surface(bempp, vertices_m: np.ndarray, faces: np.ndarray, segments: np.ndar
                           digest_size=16).hexdigest()
     if _surface_state["key"] != key:
         grid = bempp.Grid(vertices.T.copy(), triangles.T.copy(), domain_indices=segments)
-        _surface_state["surface"] = (grid, bempp.function_space(grid, "P", 1))
+        p1 = bempp.function_space(grid, "P", 1)
+        _surface_state["surface"] = (grid, p1, _p1_mass(grid, p1))
         _surface_state["key"] = key
     return _surface_state["surface"]
 

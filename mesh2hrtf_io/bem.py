@@ -233,10 +233,17 @@ def solve_sources(vertices_m: np.ndarray, faces: np.ndarray, sources: list[tuple
         if np.any(segments[np.asarray(elements)]):
             raise Mesh2HrtfIoError("two sources share vibrating elements; give each ear its own elements")
         segments[np.asarray(elements)] = EAR_SEGMENT + index
-    grid, p1, mass = _surface(bempp, vertices_m, faces, segments)
+    from . import burton_miller  # noqa: PLC0415 - numba's import and compiled kernels only when solving
+
+    grid, p1, mass, far_geometry = _surface(bempp, vertices_m, faces, segments)
     coupling = 1j / k  # Burton-Miller coupling for outgoing e^{ikr} waves
     start = time.perf_counter()
-    system = (coupling * helmholtz.hypersingular(p1, p1, p1, k) - helmholtz.double_layer(p1, p1, p1, k)).weak_form().to_dense()
+    # coupling * W - K: the element pairs sharing no vertex in one pass for both operators (burton_miller.py),
+    # the adjacent pairs from bempp-cl's singular quadrature; equal to bempp-cl's own dense assembly to 1e-15
+    system = burton_miller.assemble_far_pairs(far_geometry, k, coupling)
+    for operator, factor in ((helmholtz.hypersingular(p1, p1, p1, k), coupling),
+                             (helmholtz.double_layer(p1, p1, p1, k), -1.0)):
+        _add_singular_pairs(bempp, system, p1, operator, factor)
     mass_rows, mass_columns, mass_values = mass
     np.add.at(system, (mass_rows, mass_columns), 0.5 * mass_values)
     factors = scipy.linalg.lu_factor(system, overwrite_a=True, check_finite=False)
@@ -264,6 +271,19 @@ def solve_sources(vertices_m: np.ndarray, faces: np.ndarray, sources: list[tuple
     return pressures
 
 
+def _add_singular_pairs(bempp, system: np.ndarray, p1, operator, factor: complex) -> None:
+    """Add `factor` times `operator`'s values on the element pairs that share a vertex, an edge or the element
+    (bempp-cl's Sauter-Schwab quadrature, order SINGULAR_QUADRATURE_ORDER) to the dense P1 `system`, as bempp-cl's
+    dense assembler does after its regular part."""
+    from bempp_cl.core.singular_assembler import assemble_singular_part  # noqa: PLC0415
+
+    rows, columns, values = assemble_singular_part(p1.localised_space, p1.localised_space, bempp.GLOBAL_PARAMETERS,
+                                                   operator.descriptor, bempp.DEFAULT_DEVICE_INTERFACE)
+    dofs = p1.local2global.ravel()
+    multipliers = p1.local_multipliers.ravel()
+    np.add.at(system, (dofs[rows], dofs[columns]), factor * values * multipliers[rows] * multipliers[columns])
+
+
 def _p1_mass(grid, p1) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Gram matrix of the P1 hat functions (m^2) as (rows, columns, values) to be summed: on a triangle of area A,
     A/6 on the diagonal and A/12 off it. This is the weak form of bempp's sparse identity(P1, P1, P1), in closed
@@ -289,8 +309,9 @@ _surface_state: dict[str, object] = {"key": None, "surface": None}
 
 
 def _surface(bempp, vertices_m: np.ndarray, faces: np.ndarray, segments: np.ndarray):
-    """bempp's grid of the head (metres), its P1 space and its mass terms (:func:`_p1_mass`), kept while the same
-    head is solved frequency after frequency: building the grid's geometry takes about a second on a demo head."""
+    """bempp's grid of the head (metres), its P1 space, its mass terms (:func:`_p1_mass`) and the geometry of its
+    far element pairs (:func:`burton_miller.far_field_geometry`), kept while the same head is solved frequency
+    after frequency: building the grid's geometry takes about a second on a demo head."""
     import hashlib  # noqa: PLC0415
 
     vertices = np.ascontiguousarray(vertices_m, np.float64)
@@ -298,9 +319,12 @@ def _surface(bempp, vertices_m: np.ndarray, faces: np.ndarray, segments: np.ndar
     key = hashlib.blake2b(vertices.tobytes() + triangles.tobytes() + np.ascontiguousarray(segments).tobytes(),
                           digest_size=16).hexdigest()
     if _surface_state["key"] != key:
+        from . import burton_miller  # noqa: PLC0415
+
         grid = bempp.Grid(vertices.T.copy(), triangles.T.copy(), domain_indices=segments)
         p1 = bempp.function_space(grid, "P", 1)
-        _surface_state["surface"] = (grid, p1, _p1_mass(grid, p1))
+        _surface_state["surface"] = (grid, p1, _p1_mass(grid, p1),
+                                     burton_miller.far_field_geometry(grid, p1, REGULAR_QUADRATURE_ORDER))
         _surface_state["key"] = key
     return _surface_state["surface"]
 

@@ -147,6 +147,65 @@ def goal_lines(rows: list[dict]) -> list[str]:
     return lines
 
 
+#: Columns of regions.csv: scan -> model distances per anatomical region (reporting/pinna_regions.py).
+REGION_COLUMNS = ("subject", "condition", "region", "points", "median_mm", "p95_mm", "over_1mm_percent")
+
+
+def region_rows(results: str | os.PathLike, subjects: list[str], conditions: dict[str, list[str]],
+                landmarks: dict[str, str | os.PathLike]) -> list[dict]:
+    """One row per subject, solved condition and pinna region (:data:`REGION_COLUMNS`), the regions labelled with
+    each subject's template landmarks (``landmarks[subject]``) on its aligned PPM."""
+    from .pinna_regions import subject_regions  # noqa: PLC0415
+
+    rows = []
+    for subject in subjects:
+        for condition, table in subject_regions(results, subject, conditions[subject], landmarks[subject]).items():
+            rows += [{"subject": subject, "condition": condition, **row} for row in table]
+    return rows
+
+
+def where_lines(rows: list[dict], regions: list[dict]) -> list[str]:
+    """For every condition that misses its goal: the two pinna regions farthest from the scan, against the whole
+    scan's median (the paper traced its misses to the fossa triangularis and the cymba conchae)."""
+    from .pinna_regions import worst_regions  # noqa: PLC0415
+
+    lines = []
+    for row in rows:
+        goal = GOALS.get(row["condition"])
+        if goal is None or (abs(row["delta_qe_pp"]) <= goal[0] and abs(row["delta_pe_deg"]) <= goal[1]):
+            continue
+        table = [r for r in regions if r["subject"] == row["subject"] and r["condition"] == row["condition"]]
+        if not table:
+            continue
+        worst = worst_regions(table)
+        parts = [f"the {r['region']} (median {r['median_mm']:.2f} mm, {r['over_1mm_percent']:.0f} % of its "
+                 f"{r['points']} scan points beyond 1 mm)" for r in worst]
+        lines.append(f"{row['subject']} {row['condition']} (ΔQE {row['delta_qe_pp']:+.2f} pp, ΔPE "
+                     f"{row['delta_pe_deg']:+.2f}°): farthest from the scan are {' and '.join(parts)}; the whole "
+                     f"scan's median is {row['distance_median_mm']:.2f} mm.")
+    return lines
+
+
+def region_pivot(regions: list[dict], condition: str = "ppm") -> tuple[list[dict], tuple[str, ...]]:
+    """Rows: regions; columns: subjects; values: median scan -> pinna distance (mm) of `condition`."""
+    subjects = list(dict.fromkeys(r["subject"] for r in regions if r["condition"] == condition))
+    table: dict[str, dict] = {}
+    for r in regions:
+        if r["condition"] == condition:
+            table.setdefault(r["region"], {"region": r["region"]})[r["subject"]] = r["median_mm"]
+    return list(table.values()), ("region", *subjects)
+
+
+def write_regions_csv(path: str | os.PathLike, regions: list[dict]) -> Path:
+    """regions.csv (:data:`REGION_COLUMNS`), written atomically."""
+    buffer = io.StringIO()
+    writer = csv.DictWriter(buffer, fieldnames=REGION_COLUMNS, lineterminator="\n")
+    writer.writeheader()
+    for row in regions:
+        writer.writerow({c: _fmt(row.get(c)) for c in REGION_COLUMNS})
+    return write_text_atomic(path, buffer.getvalue())
+
+
 def _fmt(value) -> str:
     if value is None or value == "":
         return ""
@@ -285,8 +344,20 @@ SHORT_COLUMNS = ("subject", "condition", "qe_percent", "pe_deg", "delta_qe_pp", 
                  "distance_p95_mm", "reverse_median_mm", "solve_cpu_hours")
 
 
+def _regions_html(rows: list[dict], regions: list[dict] | None) -> list[str]:
+    if not regions:
+        return []
+    pivot, columns = region_pivot(regions)
+    return ["<h2>Where the geometry differs</h2>",
+            "<ul>" + "".join(f"<li>{html.escape(line)}</li>" for line in where_lines(rows, regions)) + "</ul>",
+            "<p>Median scan &rarr; PPM distance (mm) per region (each scan point in the region of its nearest "
+            "landmark on the aligned PPM):</p>", _table_html(pivot, columns),
+            "<details><summary>Every condition and region</summary>", _table_html(regions, REGION_COLUMNS),
+            "</details>"]
+
+
 def write_html(path: str | os.PathLike, rows: list[dict], figure6_path: Path, figure7_path: Path,
-               frequency_note: str, configfiles: list[str]) -> Path:
+               frequency_note: str, configfiles: list[str], regions: list[dict] | None = None) -> Path:
     """The evaluation's self-contained HTML page (figures embedded)."""
     from .subject import STYLE, _image  # noqa: PLC0415
 
@@ -301,13 +372,14 @@ def write_html(path: str | os.PathLike, rows: list[dict], figure6_path: Path, fi
              "<h2>Goals</h2><ul>" + "".join(f"<li>{html.escape(g)}</li>" for g in goals) + "</ul>",
              "<h2>Figure 7: predicted localisation</h2>", _image(figure7_path),
              "<h2>Figure 6: scan to pinna distances</h2>", _image(figure6_path),
+             *_regions_html(rows, regions),
              "<h2>Summary</h2>", _table_html(rows, COLUMNS),
              f"<p>Configuration: {html.escape(' '.join(configfiles) or 'config/config.yaml')}</p></body></html>"]
     return write_text_atomic(path, "\n".join(parts) + "\n")
 
 
 def write_readme(path: str | os.PathLike, rows: list[dict], frequency_note: str, configfiles: list[str],
-                 wall_clock_hours: float) -> Path:
+                 wall_clock_hours: float, regions: list[dict] | None = None) -> Path:
     """The evaluation folder's README: what was run, by which command, at what cost, and the numbers."""
     command = "bash scripts/run.sh" + "".join(f" --configfile {c}" for c in configfiles)
     cpu = sum(r.get("solve_cpu_hours") or 0.0 for r in rows)
@@ -334,8 +406,27 @@ Made by `{command}` (Snakemake; rules/evaluation.smk). Every number below is in 
 ## Results
 
 {_table_markdown(rows, SHORT_COLUMNS)}
-
-Files: `summary.csv`, `report.html`, `figure6_distances.png`, `figure7_qe_pe.png`,
+{_regions_markdown(rows, regions)}
+Files: `summary.csv`, `regions.csv`, `report.html`, `figure6_distances.png`, `figure7_qe_pe.png`,
 `sofa/<subject>_<condition>_left_HRTF.sofa` (the solved left ear, SimpleFreeFieldHRTF).
 """
     return write_text_atomic(path, text)
+
+
+def _regions_markdown(rows: list[dict], regions: list[dict] | None) -> str:
+    if not regions:
+        return ""
+    pivot, columns = region_pivot(regions)
+    lines = "\n".join(f"- {line}" for line in where_lines(rows, regions)) or "- every goal met"
+    return f"""
+## Where the geometry differs
+
+Each scan point is put in the region of its nearest landmark on the subject's aligned PPM
+(`ppm/data/landmark_regions.yaml`); `regions.csv` has every condition and region.
+
+{lines}
+
+Median scan -> PPM distance (mm) per region:
+
+{_table_markdown(pivot, columns)}
+"""

@@ -1,6 +1,7 @@
 # Config validation, wildcard constraints and input functions (no rules here).
 import os
 from pathlib import Path
+from types import SimpleNamespace
 
 from snakemake.utils import validate
 
@@ -307,6 +308,10 @@ def evaluation_report_inputs(wildcards) -> dict:
     for subject in SUBJECTS:
         inputs[f"{subject}_localisation"] = f"results/{subject}/localisation/qe_pe.json"
         inputs[f"{subject}_target"] = f"results/{subject}/target/pinna_target.ply"
+        # the regions of the scan (where the geometry differs): the template's landmarks on the aligned PPM
+        inputs[f"{subject}_aligned"] = f"results/{subject}/align/aligned_pinna.ply"
+        inputs[f"{subject}_landmarks"] = str(Path(align_template(SimpleNamespace(subject=subject))).parent
+                                             / "landmarks.yaml")
         for condition in evaluation_conditions(subject):
             inputs[f"{subject}_{condition}_distances"] = f"results/{subject}/evaluation/{condition}/distances.json"
             inputs[f"{subject}_{condition}_hrtf"] = f"results/{subject}/hrtf/{condition}/HRTF.sofa"

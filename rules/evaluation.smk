@@ -31,6 +31,7 @@ if EVALUATION_FOLDER:
             unpack(evaluation_report_inputs),
         output:
             summary=f"{EVALUATION_FOLDER}/summary.csv",
+            regions=f"{EVALUATION_FOLDER}/regions.csv",
             html=f"{EVALUATION_FOLDER}/report.html",
             readme=f"{EVALUATION_FOLDER}/README.md",
             figure6=f"{EVALUATION_FOLDER}/figure6_distances.png",

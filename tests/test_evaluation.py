@@ -136,11 +136,61 @@ def test_figures_page_and_readme_of_an_evaluation(tmp_path, sonicom):
     figure7(rows, tmp_path / "figure7.png")
     for name in ("figure6.png", "figure7.png"):
         assert (tmp_path / name).read_bytes()[:4] == b"\x89PNG"
+    regions = [{"subject": "S1", "condition": "ppm", "region": "cymba conchae", "points": 60, "median_mm": 1.2,
+                "p95_mm": 2.1, "over_1mm_percent": 58.0},
+               {"subject": "S1", "condition": "ppm", "region": "helix", "points": 900, "median_mm": 0.2,
+                "p95_mm": 0.6, "over_1mm_percent": 1.0}]
     write_html(tmp_path / "report.html", rows, tmp_path / "figure6.png", tmp_path / "figure7.png", "40 frequencies",
-               ["config/paper_sonicom.yaml"])
+               ["config/paper_sonicom.yaml"], regions)
     page = (tmp_path / "report.html").read_text()
     assert page.count("data:image/png;base64,") == 2 and "S1 ppm: ΔQE +1.00 pp (goal ±2), ΔPE +1.00° (goal ±2): met" in page
-    write_readme(tmp_path / "README.md", rows, "40 frequencies", ["config/paper_sonicom.yaml"], 3.5)
+    assert "Where the geometry differs" in page and "<td>cymba conchae</td><td>1.200</td>" in page
+    write_readme(tmp_path / "README.md", rows, "40 frequencies", ["config/paper_sonicom.yaml"], 3.5, regions)
     readme = (tmp_path / "README.md").read_text()
+    assert "| cymba conchae | 1.200 |" in readme and "- every goal met" in readme  # S1 meets its goals
     assert "Made by `bash scripts/run.sh --configfile config/paper_sonicom.yaml`" in readme
     assert "| S1 | ppm | 9.000 | 31.000 | 1.000 | 1.000 | 0.500 |" in readme and "4.10 CPU hours" in readme
+
+
+def test_where_a_missed_goal_comes_from_names_the_farthest_regions():
+    """A condition that misses its goal is traced to the two pinna regions farthest from the scan, not to the
+    surroundings; a condition that meets it gets no line."""
+    from reporting.evaluation import where_lines
+
+    rows = [{"subject": "S1", "condition": "ppm", "delta_qe_pp": 6.2, "delta_pe_deg": 4.1, "distance_median_mm": 0.27},
+            {"subject": "S2", "condition": "ppm", "delta_qe_pp": 0.5, "delta_pe_deg": 0.4, "distance_median_mm": 0.2}]
+    regions = [{"subject": "S1", "condition": "ppm", "region": name, "points": 100, "median_mm": median, "p95_mm": 2.0,
+                "over_1mm_percent": share}
+               for name, median, share in (("helix", 0.2, 1.0), ("cymba conchae", 1.19, 58.0),
+                                           ("crus helicis", 0.4, 19.0), ("surroundings", 3.0, 90.0))]
+    lines = where_lines(rows, regions)
+    assert len(lines) == 1 and lines[0].startswith("S1 ppm (ΔQE +6.20 pp, ΔPE +4.10°)")
+    assert "the cymba conchae (median 1.19 mm, 58 % of its 100 scan points beyond 1 mm) and the crus helicis" in lines[0]
+    assert "surroundings" not in lines[0]
+
+
+def test_scan_points_take_the_region_of_their_nearest_landmark(tmp_path):
+    """On the packaged template: a point 1 mm off each landmark gets that landmark's region, a point 20 mm from
+    the ear is "surroundings"; the region table counts and summarises the distances per region."""
+    import shutil
+
+    from ppm.template.store import default_template_dir
+    from reporting.pinna_regions import OUTSIDE, label_points, landmark_positions_mm, landmark_regions, region_table
+
+    template = default_template_dir()
+    shutil.copy(template / "template_left.ply", tmp_path / "aligned_pinna.ply")
+    positions = landmark_positions_mm(tmp_path / "aligned_pinna.ply", template / "landmarks.yaml")
+    regions = landmark_regions()
+    owner = {name: region for region, names in regions.items() for name in names}
+    assert set(owner) == set(positions)  # every landmark of the template is in exactly one region
+    names = sorted(positions)
+    points = np.array([positions[n] + [0.0, 0.0, 0.3] for n in names] + [positions["concha_centre"] + [0, 0, 40.0]])
+    labels = label_points(points, positions)
+    assert list(labels[:-1]) == [owner[n] for n in names] and labels[-1] == OUTSIDE
+    distances = np.where(labels == "cymba conchae", 1.5, 0.2)
+    table = {row["region"]: row for row in region_table(labels, distances)}
+    assert table["cymba conchae"]["median_mm"] == 1.5 and table["cymba conchae"]["over_1mm_percent"] == 100.0
+    assert table["helix"]["points"] == len(regions["helix"]) and table["helix"]["median_mm"] == pytest.approx(0.2)
+    with pytest.raises(ValueError, match="vertices"):
+        trimesh.Trimesh(np.zeros((3, 3)), [[0, 1, 2]]).export(tmp_path / "small.ply")
+        landmark_positions_mm(tmp_path / "small.ply", template / "landmarks.yaml")

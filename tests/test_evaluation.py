@@ -107,6 +107,18 @@ def test_the_committed_sonicom_evaluation_parses_and_its_readme_follows_the_summ
             assert line in readme and line in top, line
     for line in goal_lines(rows):
         assert line in readme
+    # where the geometry differs: regions.csv parses, covers every solved condition, and the README's lines follow
+    import csv
+
+    from reporting.evaluation import where_lines
+
+    regions = [{**r, "points": int(r["points"]), **{k: float(r[k]) for k in ("median_mm", "p95_mm", "over_1mm_percent")}}
+               for r in csv.DictReader((COMMITTED / "regions.csv").open())]
+    assert {(r["subject"], r["condition"]) for r in regions} == {(r["subject"], r["condition"]) for r in rows
+                                                               if r["condition"] != "reference"}
+    assert all(r["points"] > 0 and 0 <= r["median_mm"] <= r["p95_mm"] for r in regions)
+    for line in where_lines(rows, regions):
+        assert line in readme, line
     assert set(GOALS) <= {"ppm", "own_pinna"}
     assert re.search(r"Made by `bash scripts/run.sh --configfile \S+`", readme)
 

@@ -198,11 +198,16 @@ def region_pivot(regions: list[dict], condition: str = "ppm") -> tuple[list[dict
 
 def write_regions_csv(path: str | os.PathLike, regions: list[dict]) -> Path:
     """regions.csv (:data:`REGION_COLUMNS`), written atomically."""
+    return _write_csv(path, regions, REGION_COLUMNS)
+
+
+def _write_csv(path: str | os.PathLike, rows: list[dict], columns: tuple[str, ...]) -> Path:
+    """`rows` as CSV with `columns` (numbers to 3 decimals, empty where a value does not apply), atomically."""
     buffer = io.StringIO()
-    writer = csv.DictWriter(buffer, fieldnames=REGION_COLUMNS, lineterminator="\n")
+    writer = csv.DictWriter(buffer, fieldnames=columns, lineterminator="\n")
     writer.writeheader()
-    for row in regions:
-        writer.writerow({c: _fmt(row.get(c)) for c in REGION_COLUMNS})
+    for row in rows:
+        writer.writerow({column: _fmt(row.get(column)) for column in columns})
     return write_text_atomic(path, buffer.getvalue())
 
 
@@ -216,12 +221,7 @@ def _fmt(value) -> str:
 
 def write_summary_csv(path: str | os.PathLike, rows: list[dict]) -> Path:
     """summary.csv (columns :data:`COLUMNS`, empty where a value does not apply), written atomically."""
-    buffer = io.StringIO()
-    writer = csv.DictWriter(buffer, fieldnames=COLUMNS, lineterminator="\n")
-    writer.writeheader()
-    for row in rows:
-        writer.writerow({column: _fmt(row.get(column)) for column in COLUMNS})
-    return write_text_atomic(path, buffer.getvalue())
+    return _write_csv(path, rows, COLUMNS)
 
 
 def read_summary_csv(path: str | os.PathLike) -> list[dict]:

@@ -359,3 +359,15 @@ def get_final_output():
     if EVALUATION_FOLDER and config["hrtf"]["enabled"]:
         out.append(f"{EVALUATION_FOLDER}/summary.csv")
     return out
+
+
+def solve_plan_text() -> str | None:
+    """The NumCalc solve plan of this run (reporting/solve_plan.py), or None when no NumCalc solve is configured."""
+    if not config["hrtf"]["enabled"] or config["hrtf"]["solver"] != "numcalc":
+        return None
+    from reporting.solve_plan import plan_rows, plan_text
+
+    heads = [(subject, variant) for subject in SUBJECTS for variant in solved_variants(subject)]
+    rows = plan_rows(config["hrtf"]["step_store"] or None, heads, len(hrtf_frequencies()),
+                     [int(s) for s in hrtf_sources()])
+    return plan_text(rows, workflow.cores or 1)

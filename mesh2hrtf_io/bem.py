@@ -23,9 +23,11 @@ from .constants import EAR_VELOCITY_M_S
 from .errors import Mesh2HrtfIoError
 
 log = logging.getLogger(__name__)
-# dense operator assembly with numba on 2 cores: Mesh2HRTF's example head (8718 vertices, 152 million
-# entries) took 880-990 s per frequency and 4.3 GB of resident memory (benchmarks/example_head_embedded.py)
-SECONDS_PER_ENTRY = 5.8e-6
+# dense operator assembly on 2 cores, per entry of the two P1 operators: Mesh2HRTF's example head (8718 vertices, 152
+# million entries, left ear) took 125 s for its first frequency with the one-pass far pairs (burton_miller.py) and
+# bempp-cl's OpenCL singular pairs, LU included (benchmarks/solve_cost.py; the model says 130 s). bempp-cl's numba
+# assembly of both operators took 880-990 s (5.8e-6 s per entry) and 4.3 GB of resident memory.
+SECONDS_PER_ENTRY = 4.0e-7
 MEMORY_OVERHEAD = 1.75  # resident memory / (16 bytes x dense entries): buffers, LU workspace
 LU_SECONDS_PER_CUBE = 1e-10  # dense complex LU factorisation (LAPACK), per vertex count cubed
 EAR_SEGMENT = 1  # domain index of the vibrating (ear) elements
@@ -181,8 +183,8 @@ class CostEstimate:
 
 def estimate_cost(n_vertices: int, n_elements: int, n_points: int, n_ear_elements: int = 1) -> CostEstimate:
     """Dense Burton–Miller cost model: two dense P1 operators (double layer, hypersingular) of complex128,
-    the right-hand side only on the ear elements, assembled with numba on a 2-core machine, an LU
-    factorisation, plus the evaluation at ``n_points``. Constants measured on the example head (see SECONDS_PER_ENTRY)."""
+    the right-hand side only on the ear elements, assembled on a 2-core machine, an LU factorisation, plus the
+    evaluation at ``n_points``. Constants measured on the example head (see SECONDS_PER_ENTRY)."""
     dense = 2 * n_vertices**2 + 2 * n_vertices * n_ear_elements
     memory = MEMORY_OVERHEAD * 16.0 * (dense + n_points * (n_vertices + n_ear_elements)) / 1e9
     seconds = SECONDS_PER_ENTRY * dense + LU_SECONDS_PER_CUBE * n_vertices**3 + 4e-8 * n_points * n_vertices + 2.0

@@ -237,15 +237,13 @@ def solve_sources(vertices_m: np.ndarray, faces: np.ndarray, sources: list[tuple
         segments[np.asarray(elements)] = EAR_SEGMENT + index
     from . import burton_miller  # noqa: PLC0415 - numba's import and compiled kernels only when solving
 
-    grid, p1, mass, far_geometry = _surface(bempp, vertices_m, faces, segments)
+    grid, p1, mass, far_geometry, touching = _surface(bempp, vertices_m, faces, segments)
     coupling = 1j / k  # Burton-Miller coupling for outgoing e^{ikr} waves
     start = time.perf_counter()
-    # coupling * W - K: the element pairs sharing no vertex in one pass for both operators (burton_miller.py),
-    # the adjacent pairs from bempp-cl's singular quadrature; equal to bempp-cl's own dense assembly to 1e-15
+    # coupling * W - K in one pass for both operators (burton_miller.py): the element pairs sharing no vertex with
+    # bempp-cl's Gauss rule, the touching ones with its singular rule; equal to bempp-cl's dense assembly to 1e-15
     system = burton_miller.assemble_far_pairs(far_geometry, k, coupling)
-    for operator, factor in ((helmholtz.hypersingular(p1, p1, p1, k), coupling),
-                             (helmholtz.double_layer(p1, p1, p1, k), -1.0)):
-        _add_singular_pairs(bempp, system, p1, operator, factor)
+    burton_miller.add_singular_pairs(system, touching, grid, far_geometry, k, coupling)
     mass_rows, mass_columns, mass_values = mass
     np.add.at(system, (mass_rows, mass_columns), 0.5 * mass_values)
     factors = scipy.linalg.lu_factor(system, overwrite_a=True, check_finite=False)
@@ -271,19 +269,6 @@ def solve_sources(vertices_m: np.ndarray, faces: np.ndarray, sources: list[tuple
     log.info("%.0f Hz: solved %d unknowns for %d source(s) in %.1f s", frequency_hz, p1.global_dof_count,
              len(sources), time.perf_counter() - start)
     return pressures
-
-
-def _add_singular_pairs(bempp, system: np.ndarray, p1, operator, factor: complex) -> None:
-    """Add `factor` times `operator`'s values on the element pairs that share a vertex, an edge or the element
-    (bempp-cl's Sauter-Schwab quadrature, order SINGULAR_QUADRATURE_ORDER) to the dense P1 `system`, as bempp-cl's
-    dense assembler does after its regular part."""
-    from bempp_cl.core.singular_assembler import assemble_singular_part  # noqa: PLC0415
-
-    rows, columns, values = assemble_singular_part(p1.localised_space, p1.localised_space, bempp.GLOBAL_PARAMETERS,
-                                                   operator.descriptor, bempp.DEFAULT_DEVICE_INTERFACE)
-    dofs = p1.local2global.ravel()
-    multipliers = p1.local_multipliers.ravel()
-    np.add.at(system, (dofs[rows], dofs[columns]), factor * values * multipliers[rows] * multipliers[columns])
 
 
 def _p1_mass(grid, p1) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -312,8 +297,8 @@ _surface_state: dict[str, object] = {"key": None, "surface": None}
 
 def _surface(bempp, vertices_m: np.ndarray, faces: np.ndarray, segments: np.ndarray):
     """bempp's grid of the head (metres), its P1 space, its mass terms (:func:`_p1_mass`) and the geometry of its
-    far element pairs (:func:`burton_miller.far_field_geometry`), kept while the same head is solved frequency
-    after frequency: building the grid's geometry takes about a second on a demo head."""
+    far and touching element pairs (:mod:`burton_miller`), kept while the same head is solved frequency after
+    frequency: building the grid's geometry takes about a second on a demo head."""
     import hashlib  # noqa: PLC0415
 
     vertices = np.ascontiguousarray(vertices_m, np.float64)
@@ -326,7 +311,8 @@ def _surface(bempp, vertices_m: np.ndarray, faces: np.ndarray, segments: np.ndar
         grid = bempp.Grid(vertices.T.copy(), triangles.T.copy(), domain_indices=segments)
         p1 = bempp.function_space(grid, "P", 1)
         _surface_state["surface"] = (grid, p1, _p1_mass(grid, p1),
-                                     burton_miller.far_field_geometry(grid, p1, REGULAR_QUADRATURE_ORDER))
+                                     burton_miller.far_field_geometry(grid, p1, REGULAR_QUADRATURE_ORDER),
+                                     burton_miller.singular_pairs(grid, p1, SINGULAR_QUADRATURE_ORDER))
         _surface_state["key"] = key
     return _surface_state["surface"]
 

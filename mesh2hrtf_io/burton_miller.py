@@ -1,17 +1,18 @@
-"""The far (regular) part of the Burton–Miller system matrix, assembled in one pass for both operators.
+"""The Burton–Miller system matrix ``i/k W - K`` assembled in one pass for both operators.
 
 The embedded solver's system is ``i/k * W - K + M/2`` on continuous piecewise-linear (P1) functions: W the
 Helmholtz hypersingular operator, K the double layer, both in bempp-cl's Galerkin form with the same kernel
 G = e^{ikr} / (4 pi r) (SI units, metres, e^{-iwt}). bempp-cl assembles W and K one after the other, each over
-every ordered element pair. Here every *unordered* pair of elements that share no vertex is visited once: the
-point-pair distances and e^{ikr} are computed once and give the four 3 x 3 blocks (W and K, test a / trial b and
-test b / trial a), because W's kernel is symmetric and K's differs between the two orders only by which normal
-enters. That is a quarter of bempp-cl's kernel evaluations.
+every ordered element pair. Here G and its gradient are evaluated once per quadrature point for both operators:
 
-Element pairs that share a vertex, an edge or the element itself are left out: bempp-cl's singular
-(Sauter–Schwab) quadrature gives their full values (``bem.solve_sources``), exactly as in its own dense assembly.
-The quadrature of the far pairs is bempp-cl's triangle Gauss rule of the same order, so the sum equals bempp-cl's
-operators to rounding (tests/test_mesh2hrtf_io_bem.py).
+- far pairs (sharing no vertex), bempp-cl's triangle Gauss rule: every *unordered* pair is visited once, its
+  point distances and e^{ikr} giving the four 3 x 3 blocks (W and K, test a / trial b and test b / trial a),
+  because W's kernel is symmetric and K's differs between the two orders only by which normal enters: a quarter of
+  bempp-cl's kernel evaluations;
+- touching pairs (a shared vertex, edge or the element itself), bempp-cl's singular (Sauter–Schwab) rule and
+  points, both operators from one evaluation (half of bempp-cl's).
+
+The sum equals bempp-cl's own dense assembly to rounding (tests/test_mesh2hrtf_io_bem.py).
 """
 from __future__ import annotations
 
@@ -162,3 +163,114 @@ def _far_pairs(points, weights, shape, normals, curls, triangles, dofs, multipli
                         sign = multipliers[a, i] * multipliers[b, j]
                         matrix[row, dofs[b, j]] += sign * value_ab
                         transposed[row, dofs[b, j]] += sign * value_ba
+
+
+@dataclasses.dataclass(frozen=True)
+class SingularPairs:
+    """bempp-cl's singular quadrature of the element pairs that share a vertex, an edge or the element itself,
+    independent of frequency: per pair its test and trial element, where its points and weights start and how many
+    there are (reference coordinates, Sauter-Schwab rules of bempp-cl's ``quadrature.singular`` order), and the
+    P1 degrees of freedom and signs its 3 x 3 block goes to (flattened, pair-major)."""
+
+    test_points: np.ndarray
+    trial_points: np.ndarray
+    weights: np.ndarray
+    test_elements: np.ndarray
+    trial_elements: np.ndarray
+    test_offsets: np.ndarray
+    trial_offsets: np.ndarray
+    weight_offsets: np.ndarray
+    counts: np.ndarray
+    rows: np.ndarray
+    columns: np.ndarray
+    signs: np.ndarray
+
+
+def singular_pairs(grid, p1, order: int) -> SingularPairs:
+    """The touching element pairs of a P1 space with bempp-cl's singular quadrature rule of `order`."""
+    from bempp_cl.core.singular_assembler import _SingularQuadratureRuleInterfaceGalerkin  # noqa: PLC0415
+
+    support = p1.localised_space.support
+    rule = _SingularQuadratureRuleInterfaceGalerkin(grid, order, support, support)
+    (test_points, trial_points, weights, test_elements, trial_elements, test_offsets, trial_offsets,
+     weight_offsets, counts) = rule.get_arrays()
+    test = np.asarray(test_elements, np.int64)
+    trial = np.asarray(trial_elements, np.int64)
+    local = np.arange(3)
+    rows = p1.local2global[test[:, None, None], local[None, :, None]] + 0 * local[None, None, :]
+    columns = p1.local2global[trial[:, None, None], local[None, None, :]] + 0 * local[None, :, None]
+    signs = (p1.local_multipliers[test[:, None, None], local[None, :, None]]
+             * p1.local_multipliers[trial[:, None, None], local[None, None, :]])
+    return SingularPairs(
+        test_points=np.ascontiguousarray(test_points, np.float64),
+        trial_points=np.ascontiguousarray(trial_points, np.float64),
+        weights=np.ascontiguousarray(weights, np.float64), test_elements=test, trial_elements=trial,
+        test_offsets=np.asarray(test_offsets, np.int64), trial_offsets=np.asarray(trial_offsets, np.int64),
+        weight_offsets=np.asarray(weight_offsets, np.int64), counts=np.asarray(counts, np.int64),
+        rows=rows.ravel().astype(np.int64), columns=columns.ravel().astype(np.int64),
+        signs=signs.ravel().astype(np.float64))
+
+
+def add_singular_pairs(system: np.ndarray, pairs: SingularPairs, grid, geometry: FarFieldGeometry,
+                       wavenumber: float, coupling: complex) -> None:
+    """Add ``coupling * W - K`` over the touching element pairs to the dense P1 `system`: both operators from one
+    evaluation of e^{ikr} per quadrature point (bempp-cl evaluates them one operator at a time)."""
+    corners = np.ascontiguousarray(grid.vertices.T[grid.elements.T], np.float64)  # (elements, 3, 3) metres
+    blocks = np.zeros((len(pairs.test_elements), 3, 3), np.complex128)
+    _singular_pairs(corners, np.ascontiguousarray(grid.integration_elements, np.float64), geometry.normals,
+                    geometry.curls, pairs.test_points, pairs.trial_points, pairs.weights, pairs.test_elements,
+                    pairs.trial_elements, pairs.test_offsets, pairs.trial_offsets, pairs.weight_offsets,
+                    pairs.counts, float(wavenumber), complex(coupling), blocks)
+    np.add.at(system, (pairs.rows, pairs.columns), blocks.ravel() * pairs.signs)
+
+
+@numba.njit(parallel=True, cache=True, fastmath=True, boundscheck=False)
+def _singular_pairs(corners, integration_elements, normals, curls, test_points, trial_points, weights,
+                    test_elements, trial_elements, test_offsets, trial_offsets, weight_offsets, counts,
+                    wavenumber, coupling, blocks):  # pragma: no cover - compiled by numba
+    """Per touching pair (test a, trial b): sum over its quadrature points of G = e^{ikr}/(4 pi r) times
+    coupling * (curl_a . curl_b - k^2 n_a . n_b phi_i phi_j) - dG/dn_b phi_i phi_j, P1 shape functions
+    phi = (1 - s - t, s, t) at the points' reference coordinates; times both integration elements."""
+    k2 = wavenumber * wavenumber
+    for pair in numba.prange(test_elements.shape[0]):
+        a = test_elements[pair]
+        b = trial_elements[pair]
+        normal_product = normals[a, 0] * normals[b, 0] + normals[a, 1] * normals[b, 1] + normals[a, 2] * normals[b, 2]
+        green_sum = 0.0 + 0.0j
+        products = np.zeros((3, 3), np.complex128)
+        test_shape = np.empty(3)
+        trial_shape = np.empty(3)
+        for q in range(counts[pair]):
+            s_test = test_points[0, test_offsets[pair] + q]
+            t_test = test_points[1, test_offsets[pair] + q]
+            s_trial = trial_points[0, trial_offsets[pair] + q]
+            t_trial = trial_points[1, trial_offsets[pair] + q]
+            d = np.empty(3)
+            for c in range(3):
+                x = corners[a, 0, c] + s_test * (corners[a, 1, c] - corners[a, 0, c]) \
+                    + t_test * (corners[a, 2, c] - corners[a, 0, c])
+                y = corners[b, 0, c] + s_trial * (corners[b, 1, c] - corners[b, 0, c]) \
+                    + t_trial * (corners[b, 2, c] - corners[b, 0, c])
+                d[c] = y - x
+            r = np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+            kr = wavenumber * r
+            green = (np.cos(kr) + 1j * np.sin(kr)) * (INV_4PI / r) * weights[weight_offsets[pair] + q]
+            green_sum += green
+            gradient = green * (1j * kr - 1.0) / (r * r) * (d[0] * normals[b, 0] + d[1] * normals[b, 1]
+                                                            + d[2] * normals[b, 2])
+            value = -coupling * k2 * normal_product * green - gradient
+            test_shape[0] = 1.0 - s_test - t_test
+            test_shape[1] = s_test
+            test_shape[2] = t_test
+            trial_shape[0] = 1.0 - s_trial - t_trial
+            trial_shape[1] = s_trial
+            trial_shape[2] = t_trial
+            for i in range(3):
+                for j in range(3):
+                    products[i, j] += value * test_shape[i] * trial_shape[j]
+        scale = integration_elements[a] * integration_elements[b]
+        for i in range(3):
+            for j in range(3):
+                curl_product = curls[a, i, 0] * curls[b, j, 0] + curls[a, i, 1] * curls[b, j, 1] \
+                    + curls[a, i, 2] * curls[b, j, 2]
+                blocks[pair, i, j] = (coupling * curl_product * green_sum + products[i, j]) * scale

@@ -70,9 +70,9 @@ def test_opencl_and_numba_backends_agree():
 
 @pytest.mark.parametrize("drop_one_face", [False, True], ids=["even element count", "odd element count"])
 def test_one_pass_burton_miller_assembly_equals_bempp_dense_assembly(drop_one_face):
-    """The system matrix i/k W - K assembled with the far element pairs in one pass (each unordered pair once,
-    burton_miller.py) plus bempp-cl's singular part equals bempp-cl's own dense assembly of the two operators
-    to 1e-12 relative, at 3 and 12 kHz (an even and an odd number of elements: the pair {a, a + n/2})."""
+    """The system matrix i/k W - K assembled in one pass for both operators (burton_miller.py: each unordered far
+    pair once, each touching pair with bempp-cl's singular rule) equals bempp-cl's own dense assembly of the two
+    operators to 1e-12 relative, at 3 and 12 kHz (an even and an odd number of elements: the pair {a, a + n/2})."""
     from mesh2hrtf_io import bem, burton_miller
 
     sphere = trimesh.creation.icosphere(subdivisions=2, radius=RADIUS_M)
@@ -83,13 +83,12 @@ def test_one_pass_burton_miller_assembly_equals_bempp_dense_assembly(drop_one_fa
     grid = bempp.Grid(sphere.vertices.T.copy(), faces.T.astype(np.uint32).copy())
     p1 = bempp.function_space(grid, "P", 1)
     geometry = burton_miller.far_field_geometry(grid, p1, bem.REGULAR_QUADRATURE_ORDER)
+    touching = burton_miller.singular_pairs(grid, p1, bem.SINGULAR_QUADRATURE_ORDER)
     for frequency in (3000.0, 12000.0):
         k = 2 * np.pi * frequency / 343.0
         coupling = 1j / k
         system = burton_miller.assemble_far_pairs(geometry, k, coupling)
-        for operator, factor in ((helmholtz.hypersingular(p1, p1, p1, k), coupling),
-                                 (helmholtz.double_layer(p1, p1, p1, k), -1.0)):
-            bem._add_singular_pairs(bempp, system, p1, operator, factor)
+        burton_miller.add_singular_pairs(system, touching, grid, geometry, k, coupling)
         dense = (coupling * helmholtz.hypersingular(p1, p1, p1, k)
                  - helmholtz.double_layer(p1, p1, p1, k)).weak_form().to_dense()
         assert np.linalg.norm(system - dense) / np.linalg.norm(dense) < 1e-12

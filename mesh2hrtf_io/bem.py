@@ -243,7 +243,7 @@ def solve_sources(vertices_m: np.ndarray, faces: np.ndarray, sources: list[tuple
     # coupling * W - K in one pass for both operators (burton_miller.py): the element pairs sharing no vertex with
     # bempp-cl's Gauss rule, the touching ones with its singular rule; equal to bempp-cl's dense assembly to 1e-15
     system = burton_miller.assemble_far_pairs(far_geometry, k, coupling)
-    burton_miller.add_singular_pairs(system, touching, grid, far_geometry, k, coupling)
+    burton_miller.add_singular_pairs(system, touching, far_geometry, k, coupling)
     mass_rows, mass_columns, mass_values = mass
     np.add.at(system, (mass_rows, mass_columns), 0.5 * mass_values)
     factors = scipy.linalg.lu_factor(system, overwrite_a=True, check_finite=False)

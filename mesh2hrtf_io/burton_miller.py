@@ -29,7 +29,8 @@ class FarFieldGeometry:
     """What the far-pair assembly needs of a P1 surface, independent of frequency (metres).
 
     points: (elements, q, 3) quadrature points; weights: (elements, q) Gauss weights times the element's
-    integration element (twice its area, m^2); shape: (q, 3) P1 shape values at the points; normals: (elements, 3)
+    integration element (twice its area, m^2); corners: (elements, 3, 3) vertex positions; integration_elements:
+    (elements,); shape: (q, 3) P1 shape values at the points; normals: (elements, 3)
     outward unit normals; curls: (elements, 3 shape functions, 3) surface curls n x grad(phi) (1/m); triangles:
     (elements, 3) vertex indices; dofs and multipliers: (elements, 3) P1 degrees of freedom and their signs;
     colour_order, colour_offsets: elements sorted by colour (no two elements of a colour share a degree of
@@ -37,6 +38,8 @@ class FarFieldGeometry:
 
     points: np.ndarray
     weights: np.ndarray
+    corners: np.ndarray
+    integration_elements: np.ndarray
     shape: np.ndarray
     normals: np.ndarray
     curls: np.ndarray
@@ -69,6 +72,8 @@ def far_field_geometry(grid, p1, quadrature_order: int) -> FarFieldGeometry:
     return FarFieldGeometry(
         points=np.ascontiguousarray(points, np.float64),
         weights=np.ascontiguousarray(gauss_weights[None, :] * grid.integration_elements[:, None], np.float64),
+        corners=np.ascontiguousarray(corners, np.float64),
+        integration_elements=np.ascontiguousarray(grid.integration_elements, np.float64),
         shape=np.ascontiguousarray(shape, np.float64), normals=np.ascontiguousarray(normals, np.float64),
         curls=np.ascontiguousarray(curls, np.float64),
         triangles=np.ascontiguousarray(grid.elements.T, np.int64),
@@ -197,8 +202,9 @@ def singular_pairs(grid, p1, order: int) -> SingularPairs:
     test = np.asarray(test_elements, np.int64)
     trial = np.asarray(trial_elements, np.int64)
     local = np.arange(3)
-    rows = p1.local2global[test[:, None, None], local[None, :, None]] + 0 * local[None, None, :]
-    columns = p1.local2global[trial[:, None, None], local[None, None, :]] + 0 * local[None, :, None]
+    shape = (len(test), 3, 3)
+    rows = np.broadcast_to(p1.local2global[test][:, :, None], shape)
+    columns = np.broadcast_to(p1.local2global[trial][:, None, :], shape)
     signs = (p1.local_multipliers[test[:, None, None], local[None, :, None]]
              * p1.local_multipliers[trial[:, None, None], local[None, None, :]])
     return SingularPairs(
@@ -211,13 +217,12 @@ def singular_pairs(grid, p1, order: int) -> SingularPairs:
         signs=signs.ravel().astype(np.float64))
 
 
-def add_singular_pairs(system: np.ndarray, pairs: SingularPairs, grid, geometry: FarFieldGeometry,
+def add_singular_pairs(system: np.ndarray, pairs: SingularPairs, geometry: FarFieldGeometry,
                        wavenumber: float, coupling: complex) -> None:
     """Add ``coupling * W - K`` over the touching element pairs to the dense P1 `system`: both operators from one
     evaluation of e^{ikr} per quadrature point (bempp-cl evaluates them one operator at a time)."""
-    corners = np.ascontiguousarray(grid.vertices.T[grid.elements.T], np.float64)  # (elements, 3, 3) metres
     blocks = np.zeros((len(pairs.test_elements), 3, 3), np.complex128)
-    _singular_pairs(corners, np.ascontiguousarray(grid.integration_elements, np.float64), geometry.normals,
+    _singular_pairs(geometry.corners, geometry.integration_elements, geometry.normals,
                     geometry.curls, pairs.test_points, pairs.trial_points, pairs.weights, pairs.test_elements,
                     pairs.trial_elements, pairs.test_offsets, pairs.trial_offsets, pairs.weight_offsets,
                     pairs.counts, float(wavenumber), complex(coupling), blocks)

@@ -87,11 +87,16 @@ CONTROLS = ("own_pinna", "default_ppm")
 
 
 def evaluation_conditions(subject: str) -> list[str]:
-    """The solved conditions of a subject's evaluation (config evaluation.conditions; default_ppm only for the
-    subjects of evaluation.default_ppm_subjects, all when that list is empty)."""
-    chosen = config["evaluation"]["default_ppm_subjects"]
-    return [c for c in config["evaluation"]["conditions"]
-            if c != "default_ppm" or not chosen or subject in chosen]
+    """The solved conditions of a subject's evaluation (config evaluation.conditions); a control only for the
+    subjects of evaluation.<control>_subjects (default_ppm_subjects, own_pinna_subjects), all when that list is
+    empty."""
+    evaluation = config["evaluation"]
+
+    def chosen(condition: str) -> bool:
+        subjects = evaluation.get(f"{condition}_subjects") or []
+        return condition == "ppm" or not subjects or subject in subjects
+
+    return [c for c in evaluation["conditions"] if chosen(c)]
 
 
 def control_pinna(wildcards) -> str:

@@ -50,6 +50,27 @@ def test_dry_run_with_hrtfs_plans_one_numcalc_job_per_ear_and_frequency_of_the_s
         assert f"steps/source_{source}/steps_40-40.json" in text and f"steps/source_{source}/steps_41-41.json" not in text
 
 
+
+def test_dry_run_of_the_evaluation_gives_each_control_only_to_its_listed_subjects(tmp_path, sonicom):
+    """evaluation.own_pinna_subjects / default_ppm_subjects: the controls' heads are planned only for those."""
+    import re
+
+    import yaml
+
+    work = _copy_workflow(tmp_path)
+    config = yaml.safe_load((work / "config" / "config.yaml").read_text())
+    config["data_root"], config["hrtf"]["enabled"] = str(sonicom), True
+    config["evaluation"].update(conditions=["ppm", "own_pinna", "default_ppm"], folder="evaluation/x",
+                                own_pinna_subjects=["P143"], default_ppm_subjects=["P039"])
+    (work / "config" / "test_controls.yaml").write_text(yaml.safe_dump(config))
+    done = _run(["evaluation_report", "-n", "--cores", "2", "--configfile", "config/test_controls.yaml"], work)
+    assert done.returncode == 0, done.stderr[-3000:]
+    text = done.stdout + done.stderr
+    planned = set(re.findall(r"results/(P\d+)/hrtf/(\w+)/HRIR\.sofa", text))
+    assert planned == {("P039", "ppm"), ("P067", "ppm"), ("P143", "ppm"), ("P143", "own_pinna"),
+                       ("P039", "default_ppm")}
+
+
 def test_config_errors_stop_before_any_work(tmp_path):
     work = _copy_workflow(tmp_path)
     done = _run(["-n", "--cores", "1", "--config", f"data_root={tmp_path / 'nowhere'}"], work)

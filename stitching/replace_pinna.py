@@ -74,6 +74,13 @@ def _covered_by_pinna(head: trimesh.Trimesh, pinna: trimesh.Trimesh, rim: np.nda
     return near_pinna & lateral & outline, centre, plane
 
 
+def _largest_component(mesh: trimesh.Trimesh, faces: np.ndarray) -> np.ndarray:
+    """The largest edge-connected part of ``faces`` (face indices of ``mesh``), sorted."""
+    part = trimesh.Trimesh(mesh.vertices, mesh.faces[faces], process=False)
+    components = trimesh.graph.connected_components(part.face_adjacency, nodes=np.arange(len(faces)))
+    return np.sort(faces[max(components, key=len)])
+
+
 def own_pinna_region(head: trimesh.Trimesh, pinna: trimesh.Trimesh, *, inset_mm: float = 1.0,
                      reach_mm: float = 25.0, pinna_source: str = "pinna mesh") -> trimesh.Trimesh:
     """The head's own left pinna under an aligned pinna ``pinna``: the head faces inside its rim (by at least
@@ -83,11 +90,13 @@ def own_pinna_region(head: trimesh.Trimesh, pinna: trimesh.Trimesh, *, inset_mm:
     rim = _check_pinna(pinna, pinna_source)
     covered, _, _ = _covered_by_pinna(head, pinna, rim, -inset_mm, reach_mm)
     inside = covered[head.faces].all(axis=1)
-    region = trimesh.Trimesh(head.vertices, head.faces[inside], process=False)
-    if len(region.faces) == 0:
+    if not inside.any():
         raise StitchError(f"{pinna_source}: no head face lies inside the pinna's rim; is it placed at this head's left ear?")
-    components = trimesh.graph.connected_components(region.face_adjacency, nodes=np.arange(len(region.faces)))
-    region = trimesh.Trimesh(head.vertices, region.faces[np.sort(max(components, key=len))], process=False)
+    # holes in the region (faces under the helix fold or deep in the concha that the tests above miss) belong to
+    # it: the region is everything the rest of the head (the largest outside part) does not reach
+    rest = _largest_component(head, np.flatnonzero(~inside))
+    region_faces = _largest_component(head, np.setdiff1d(np.arange(len(head.faces)), rest))
+    region = trimesh.Trimesh(head.vertices, head.faces[region_faces], process=False)
     region.remove_unreferenced_vertices()
     loops = boundary_loops(region)
     if len(loops) != 1:

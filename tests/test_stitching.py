@@ -111,6 +111,21 @@ def test_bad_input_is_named_and_nothing_is_written(tmp_path, p143_head, p143_ppm
     assert not (tmp_path / "out.ply").exists() and not (tmp_path / "out.json").exists()
 
 
+def test_the_own_pinna_region_takes_in_the_faces_its_rim_tests_miss(model, sonicom):
+    """On P039 (and P067) the faces inside the fitted PPM's rim left holes in the own pinna region (under the
+    helix fold): the region has them back, one boundary loop, and goes through the stitch like P143's."""
+    from stitching.loops import boundary_loops
+    from stitching.replace_pinna import own_pinna_region
+
+    head = trimesh.load(sonicom / "P039" / "head_graded_left.ply", process=False)
+    target = prepare_target(sonicom / "P039" / "pinna_left_crop.ply", side="left", margin_mm=3.0)
+    pinna = trimesh.Trimesh(align(model, target).vertices_mm, model.faces, process=False)
+    own = own_pinna_region(head, pinna, pinna_source="P039 fit")
+    assert len(boundary_loops(own)) == 1 and 10000 < len(own.faces) < 25000
+    stitched = replace_pinna(head, own).mesh
+    assert stitched.is_watertight and stitched.is_winding_consistent and stitched.volume > 0
+
+
 def test_the_heads_own_pinna_under_a_fitted_ppm_goes_back_through_the_same_path(p143_head, p143_ppm_pinna):
     """The own_pinna control: the head faces inside the fitted PPM's rim, cut out and stitched back, give a
     closed head that lies on the original surface outside the seam."""

@@ -25,14 +25,16 @@ from ppm.atomic import atomic_path, write_text_atomic
 
 #: Columns of summary.csv, in order (the issue's, then provenance).
 COLUMNS = ("subject", "condition", "qe_percent", "pe_deg", "eb_deg", "sensitivity_db", "delta_qe_pp", "delta_pe_deg",
-           "distance_median_mm", "distance_p95_mm", "reverse_median_mm", "reverse_p95_mm", "n_frequencies",
+           "delta_qe_vs_original_pp", "delta_pe_vs_original_deg", "distance_median_mm", "distance_p95_mm", "reverse_median_mm", "reverse_p95_mm", "n_frequencies",
            "solve_cpu_hours", "n_elements", "steps_solved_here", "steps_restored", "head_sha256")
 
-#: The evaluation's goals: |ΔQE| (pp) and |ΔPE| (deg) against the reference, per condition.
+#: The evaluation's goals: |ΔQE| (pp) and |ΔPE| (deg) against the reference, per condition (and, where the
+#: subject has the condition "original", against this pipeline's own solve of the unchanged head).
 GOALS = {"ppm": (2.0, 2.0), "own_pinna": (1.0, 1.0)}
 
 CONDITION_LABELS = {"reference": "reference (dataset HRIRs, rebuilt at the set)", "ppm": "PPM (aligned, LOO template)",
-                    "own_pinna": "own pinna (stitch + remesh control)", "default_ppm": "default PPM (global pose only)"}
+                    "own_pinna": "own pinna (stitch + remesh control)", "default_ppm": "default PPM (global pose only)",
+                    "original": "original head (the reference head solved here)"}
 
 
 def condition_distances(target_path: str | os.PathLike, pinna_path: str | os.PathLike,
@@ -112,6 +114,7 @@ def evaluation_rows(results: str | os.PathLike, subjects: list[str], conditions:
         localisation = json.loads((results / subject / "localisation" / "qe_pe.json").read_text())
         predicted = localisation["conditions"]
         reference = predicted["reference"]
+        original = predicted.get("original") if "original" in conditions[subject] else None
         n_frequencies = len(localisation.get("frequency_set", {}).get("frequencies_hz", [])) or None
         for condition in ["reference", *conditions[subject]]:
             p = predicted[condition]
@@ -119,6 +122,9 @@ def evaluation_rows(results: str | os.PathLike, subjects: list[str], conditions:
                    "eb_deg": p["eb_deg"], "sensitivity_db": localisation["sensitivity_db"],
                    "delta_qe_pp": p["qe_percent"] - reference["qe_percent"],
                    "delta_pe_deg": p["pe_deg"] - reference["pe_deg"], "n_frequencies": n_frequencies}
+            if original is not None and condition not in ("reference", "original"):
+                row.update(delta_qe_vs_original_pp=p["qe_percent"] - original["qe_percent"],
+                           delta_pe_vs_original_deg=p["pe_deg"] - original["pe_deg"])
             if condition != "reference":
                 distances = json.loads((results / subject / "evaluation" / condition / "distances.json").read_text())
                 cost = solve_cost(steps[subject, condition], Path(store) / subject / condition if store else None)
@@ -144,6 +150,11 @@ def goal_lines(rows: list[dict]) -> list[str]:
         met = abs(row["delta_qe_pp"]) <= goal[0] and abs(row["delta_pe_deg"]) <= goal[1]
         lines.append(f"{row['subject']} {row['condition']}: ΔQE {row['delta_qe_pp']:+.2f} pp (goal ±{goal[0]:g}), "
                      f"ΔPE {row['delta_pe_deg']:+.2f}° (goal ±{goal[1]:g}): {'met' if met else 'MISSED'}")
+        if row.get("delta_qe_vs_original_pp") is not None:
+            qe, pe = row["delta_qe_vs_original_pp"], row["delta_pe_vs_original_deg"]
+            met = abs(qe) <= goal[0] and abs(pe) <= goal[1]
+            lines.append(f"{row['subject']} {row['condition']} vs the original head solved here: ΔQE {qe:+.2f} pp, "
+                         f"ΔPE {pe:+.2f}°: {'met' if met else 'MISSED'}")
     return lines
 
 

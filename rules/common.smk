@@ -55,7 +55,7 @@ else:
 
 wildcard_constraints:
     subject="|".join(SUBJECTS),
-    variant="reference|ppm|own_pinna|default_ppm",
+    variant="reference|original|ppm|own_pinna|default_ppm",
     control="own_pinna|default_ppm",
     source="[12]",
     first="[0-9]+",
@@ -82,14 +82,14 @@ def template_params():
     return config["template"]
 
 
-HRTF_VARIANTS = ("reference", "ppm", "own_pinna", "default_ppm")
+HRTF_VARIANTS = ("reference", "original", "ppm", "own_pinna", "default_ppm")
 CONTROLS = ("own_pinna", "default_ppm")
 
 
 def evaluation_conditions(subject: str) -> list[str]:
     """The solved conditions of a subject's evaluation (config evaluation.conditions); a control only for the
-    subjects of evaluation.<control>_subjects (default_ppm_subjects, own_pinna_subjects), all when that list is
-    empty."""
+    subjects of evaluation.<control>_subjects (original_subjects, own_pinna_subjects, default_ppm_subjects), all
+    when that list is empty."""
     evaluation = config["evaluation"]
 
     def chosen(condition: str) -> bool:
@@ -116,8 +116,10 @@ def hrtf_frequencies():
 
 
 def head_mesh_of(subject: str, variant: str) -> str:
-    """The head mesh (mm) whose HRTFs a subject's variant stands for."""
-    if variant == "reference":
+    """The head mesh (mm) whose HRTFs a subject's variant stands for ("original": the reference head itself, solved
+    here as an evaluation condition, so that the solved conditions are also compared with this pipeline's own
+    solve of the unchanged head)."""
+    if variant in ("reference", "original"):
         return str(DATA_ROOT / subject / config["hrtf"]["reference_head"])
     if variant == "ppm":
         return f"results/{subject}/remesh/head.ply"

@@ -15,7 +15,7 @@ rule condition_distances:
     benchmark:
         "benchmarks/timings/evaluation/condition_distances/{subject}_{condition}.tsv"
     wildcard_constraints:
-        condition="ppm|own_pinna|default_ppm",
+        condition="original|ppm|own_pinna|default_ppm",
     threads: 1
     resources:
         mem_mb=measured_mem_mb("condition_distances"),

@@ -40,18 +40,20 @@ def test_distances_of_a_pinna_offset_along_its_normals_are_the_offset(tmp_path, 
 
 
 def test_rows_carry_deltas_against_the_reference_and_goals_are_judged(tmp_path):
-    """Rows from a subject's localisation summary and a condition's distances; the CSV round-trips."""
+    """Rows from a subject's localisation summary and a condition's distances; the conditions are also compared
+    with the original head solved here; the CSV round-trips."""
     from mesh2hrtf_io import sagittal_grid, write_project
 
     subject = tmp_path / "results" / "S1"
     (subject / "localisation").mkdir(parents=True)
     conditions = {"reference": {"qe_percent": 8.0, "pe_deg": 30.0, "eb_deg": 1.0},
                   "ppm": {"qe_percent": 9.5, "pe_deg": 33.0, "eb_deg": 2.0},
-                  "own_pinna": {"qe_percent": 8.4, "pe_deg": 30.5, "eb_deg": 1.0}}
+                  "own_pinna": {"qe_percent": 8.4, "pe_deg": 30.5, "eb_deg": 1.0},
+                  "original": {"qe_percent": 9.0, "pe_deg": 30.2, "eb_deg": 1.0}}
     (subject / "localisation" / "qe_pe.json").write_text(json.dumps(
         {"sensitivity_db": 0.61, "conditions": conditions, "frequency_set": {"frequencies_hz": [1000.0, 2000.0]}}))
     steps = {}
-    for condition in ("ppm", "own_pinna"):
+    for condition in ("original", "ppm", "own_pinna"):
         (subject / "evaluation" / condition).mkdir(parents=True)
         (subject / "evaluation" / condition / "distances.json").write_text(json.dumps(
             {"target_to_model": {"median_mm": 0.3, "p95_mm": 0.9}, "model_to_target": {"median_mm": 0.2, "p95_mm": 0.7}}))
@@ -65,9 +67,18 @@ def test_rows_carry_deltas_against_the_reference_and_goals_are_judged(tmp_path):
                                                 {"step": 2, "attempts": [{"seconds": 1000.0}, {"seconds": 800.0}]}]}))
         steps["S1", condition] = [str(status)]
         (tmp_path / f"{condition}.ply").write_bytes(b"head")
-    heads = {("S1", c): str(tmp_path / f"{c}.ply") for c in ("ppm", "own_pinna")}
+    heads = {("S1", c): str(tmp_path / f"{c}.ply") for c in ("original", "ppm", "own_pinna")}
     rows = evaluation_rows(tmp_path / "results", ["S1"], {"S1": ["ppm", "own_pinna"]}, heads, steps)
     assert [r["condition"] for r in rows] == ["reference", "ppm", "own_pinna"]
+    assert "delta_qe_vs_original_pp" not in rows[1]  # no original head solved: no such comparison
+    with_original = evaluation_rows(tmp_path / "results", ["S1"], {"S1": ["original", "ppm", "own_pinna"]}, heads,
+                                    steps)
+    assert [r["condition"] for r in with_original] == ["reference", "original", "ppm", "own_pinna"]
+    own = with_original[3]
+    assert own["delta_qe_vs_original_pp"] == pytest.approx(-0.6) and own["delta_pe_vs_original_deg"] == pytest.approx(0.3)
+    assert "delta_qe_vs_original_pp" not in with_original[1]
+    assert any(line.startswith("S1 own_pinna vs the original head solved here: ΔQE -0.60 pp")
+               for line in goal_lines(with_original))
     ppm = rows[1]
     assert ppm["delta_qe_pp"] == pytest.approx(1.5) and ppm["delta_pe_deg"] == pytest.approx(3.0)
     assert ppm["solve_cpu_hours"] == pytest.approx(1.0) and ppm["steps_solved_here"] == 2
@@ -88,7 +99,10 @@ def test_the_committed_sonicom_evaluation_parses_and_its_readme_follows_the_summ
     import sofar
 
     rows = read_summary_csv(COMMITTED / "summary.csv")
-    assert rows and set(rows[0]) == set(COLUMNS)
+    issue_columns = {"subject", "condition", "qe_percent", "pe_deg", "eb_deg", "sensitivity_db", "delta_qe_pp",
+                     "delta_pe_deg", "distance_median_mm", "distance_p95_mm", "reverse_median_mm", "reverse_p95_mm",
+                     "n_frequencies", "solve_cpu_hours"}
+    assert rows and issue_columns <= set(rows[0]) <= set(COLUMNS)
     readme = (COMMITTED / "README.md").read_text()
     top = (ROOT / "README.md").read_text()
     for subject in sorted({r["subject"] for r in rows}):

@@ -88,6 +88,27 @@ def test_ear_canal_elements_of_a_real_head(sonicom):
         assert head.area_faces[faces].sum() >= 4.0
 
 
+@pytest.mark.parametrize("subject", ["P039", "P067", "P143"])
+def test_the_source_sits_in_the_middle_of_the_blocked_canal_floor(sonicom, subject):
+    """The ray from the interaural centre leaves the SONICOM heads on the wall behind the tragus; the source is
+    the middle of the flat patch the scan closed the canal with, 1-7 mm deeper, its faces looking out along +y."""
+    from stitching.ear_canal import _ray_exit, canal_floor
+
+    head = trimesh.load(sonicom / subject / "head_graded_left.ply", process=False)
+    hit, face = _ray_exit(head, np.array([0.0, 1.0, 0.0]), "left", subject)
+    floor = canal_floor(head, hit, face, np.array([0.0, 1.0, 0.0]))
+    assert floor is not None and 50.0 < head.area_faces[floor].sum() < 110.0  # a canal entrance, 8-12 mm across
+    faces = ear_canal_elements(head, "left")
+    centre = head.triangles_center[faces].mean(axis=0)
+    assert 0.5 < hit[1] - centre[1] < 8.0 and np.ptp(head.triangles_center[floor][:, 1]) < 2.0
+    assert head.face_normals[faces][:, 1].mean() > 0.9 and 4.0 <= head.area_faces[faces].sum() < 5.0
+    assert set(faces) <= set(floor)
+    # a sphere has no pit: its source stays where the ray leaves it
+    sphere = trimesh.creation.icosphere(subdivisions=4, radius=80.0)
+    cap = ear_canal_elements(sphere, "left")
+    assert sphere.triangles_center[cap][:, 1].min() > 79.0
+
+
 def test_bad_input_is_named_and_nothing_is_written(tmp_path, p143_head, p143_ppm_pinna, sonicom):
     open_head = trimesh.Trimesh(p143_head.vertices, p143_head.faces[1:], process=False)
     with pytest.raises(StitchError, match="open"):

@@ -1,0 +1,101 @@
+"""Where the reciprocal ear source sits, and how far that moves the solved DTFs from the dataset's reference.
+
+    .venv/bin/python benchmarks/ear_source.py [--subject P143] [--frequencies 9000 14400] [--work DIR]
+
+The subject's unchanged SONICOM head (``head_graded_left.ply``, the ground truth) is exported twice on the
+reference SOFA's 793 directions, left ear only, at frequencies of the reference's own 150 Hz grid (so the
+reference HRTF is exact there): once with the source faces at the exit of the ray from the interaural centre
+along +y (the former rule), once with the source in the middle of the canal floor the surface leads down into
+from there (``stitching.ear_canal``, the rule now). NumCalc solves both, one step at a time; each solved DTF
+(dB, the mean over directions removed) is compared with the reference's (the HRIRs' exact DFT). Finished steps
+stay in ``--work``, so an interrupted run continues.
+Last line (JSON): per rule and frequency the median and 95th percentile of |ΔDTF| (dB) over the directions,
+the distance between the two sources (mm) and the seconds per step.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+SONICOM = ROOT.parent / "shared" / "data" / "sonicom"
+
+
+def exit_faces(mesh, min_area_mm2: float = 4.0) -> np.ndarray:
+    """The former rule: the faces nearest the ray's exit point (outward along +y) up to ``min_area_mm2``."""
+    from stitching.ear_canal import _ray_exit
+
+    hit, _ = _ray_exit(mesh, np.array([0.0, 1.0, 0.0]), "left", "head")
+    outward = np.flatnonzero(mesh.face_normals[:, 1] > 0.0)
+    order = outward[np.argsort(np.linalg.norm(mesh.triangles_center[outward] - hit, axis=1))]
+    count = int(np.searchsorted(np.cumsum(mesh.area_faces[order]), min_area_mm2)) + 1
+    return np.sort(order[:count])
+
+
+def dtf_db(spectra: np.ndarray) -> np.ndarray:
+    """Directional part (dB) of one frequency's responses over the directions."""
+    level = 20.0 * np.log10(np.abs(spectra) + 1e-30)
+    return level - level.mean()
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--subject", default="P143")
+    parser.add_argument("--frequencies", type=float, nargs="+", default=[9000.0, 14400.0])
+    parser.add_argument("--numcalc", default="")
+    parser.add_argument("--work", type=Path, default=ROOT / "results" / "benchmarks" / "ear_source")
+    args = parser.parse_args()
+
+    import sofar
+    import trimesh
+
+    from mesh2hrtf_io.grids import grid_from_sofa
+    from mesh2hrtf_io.numcalc import find_numcalc, run_step
+    from mesh2hrtf_io.project import write_project
+    from mesh2hrtf_io.results import read_eval_grid_pressure
+    from stitching.ear_canal import ear_canal_elements
+
+    folder = SONICOM / args.subject
+    head = trimesh.load(folder / "head_graded_left.ply", process=False, force="mesh")
+    reference = sofar.read_sofa(str(folder / "hrir_mesh2hrtf_48k.sofa"), verbose=False)
+    rate = float(np.atleast_1d(reference.Data_SamplingRate)[0])
+    impulse = reference.Data_IR[:, 0, :]
+    times = np.arange(impulse.shape[1]) / rate
+    numcalc = find_numcalc(args.numcalc or None)
+    grid = grid_from_sofa(folder / "hrir_mesh2hrtf_48k.sofa", name="Directions")
+    rules = {"ray_exit": exit_faces(head), "canal_floor": ear_canal_elements(head, "left")}
+    centres = {name: head.triangles_center[faces].mean(axis=0) for name, faces in rules.items()}
+    gap = float(np.linalg.norm(centres["ray_exit"] - centres["canal_floor"]))
+    print(f"{args.subject}: sources {gap:.1f} mm apart; ray exit at {np.round(centres['ray_exit'], 1)}, "
+          f"canal floor at {np.round(centres['canal_floor'], 1)} (mm)")
+    figures: dict = {"subject": args.subject, "source_gap_mm": round(gap, 2)}
+    for name, faces in rules.items():
+        project = args.work / args.subject / name
+        if not (project / "parameters.json").is_file():
+            write_project(project, head.vertices, head.faces, {"left": faces}, [grid], args.frequencies,
+                          source_type="Left ear", title=f"{args.subject}_{name}")
+        source = project / "NumCalc" / "source_1"
+        for step, frequency in enumerate(args.frequencies, start=1):
+            start = time.perf_counter()
+            status = run_step(numcalc, source, step, len(grid.points_m))
+            seconds = time.perf_counter() - start
+            solved = dtf_db(read_eval_grid_pressure(source, step))
+            truth = dtf_db(impulse @ np.exp(-2j * np.pi * frequency * times))
+            error = np.abs(solved - truth)
+            key = f"{name}_{frequency:.0f}hz"
+            figures[f"{key}_median_db"] = round(float(np.median(error)), 3)
+            figures[f"{key}_p95_db"] = round(float(np.percentile(error, 95)), 3)
+            figures[f"{key}_seconds"] = round(seconds, 1)
+            print(f"  {name:12s} {frequency:8.0f} Hz: |ΔDTF| to the reference median {np.median(error):.2f} dB, "
+                  f"p95 {np.percentile(error, 95):.2f} dB ({'resumed' if status.get('resumed') else f'{seconds:.0f} s'})")
+    print(json.dumps(figures))
+
+
+if __name__ == "__main__":
+    main()

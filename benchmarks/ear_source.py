@@ -29,13 +29,11 @@ SONICOM = ROOT.parent / "shared" / "data" / "sonicom"
 
 def exit_faces(mesh, min_area_mm2: float = 4.0) -> np.ndarray:
     """The former rule: the faces nearest the ray's exit point (outward along +y) up to ``min_area_mm2``."""
-    from stitching.ear_canal import _ray_exit
+    from stitching.ear_canal import _ray_exit, faces_around
 
-    hit, _ = _ray_exit(mesh, np.array([0.0, 1.0, 0.0]), "left", "head")
-    outward = np.flatnonzero(mesh.face_normals[:, 1] > 0.0)
-    order = outward[np.argsort(np.linalg.norm(mesh.triangles_center[outward] - hit, axis=1))]
-    count = int(np.searchsorted(np.cumsum(mesh.area_faces[order]), min_area_mm2)) + 1
-    return np.sort(order[:count])
+    left = np.array([0.0, 1.0, 0.0])
+    hit, _ = _ray_exit(mesh, left, "left", "head")
+    return faces_around(mesh, hit, left, min_area_mm2)
 
 
 def dtf_db(spectra: np.ndarray) -> np.ndarray:

@@ -25,8 +25,8 @@ from ppm.atomic import atomic_path, write_text_atomic
 
 #: Columns of summary.csv, in order (the issue's, then provenance).
 COLUMNS = ("subject", "condition", "qe_percent", "pe_deg", "eb_deg", "sensitivity_db", "delta_qe_pp", "delta_pe_deg",
-           "delta_qe_vs_original_pp", "delta_pe_vs_original_deg", "distance_median_mm", "distance_p95_mm", "reverse_median_mm", "reverse_p95_mm", "n_frequencies",
-           "solve_cpu_hours", "n_elements", "steps_solved_here", "steps_restored", "head_sha256")
+           "delta_qe_vs_original_pp", "delta_pe_vs_original_deg", "distance_median_mm", "distance_p95_mm",
+           "reverse_median_mm", "reverse_p95_mm", "n_frequencies", "solve_cpu_hours", "n_elements", "steps_solved_here", "steps_restored", "head_sha256")
 
 #: The evaluation's goals: |ΔQE| (pp) and |ΔPE| (deg) against the reference, per condition (and, where the
 #: subject has the condition "original", against this pipeline's own solve of the unchanged head).
@@ -140,6 +140,11 @@ def evaluation_rows(results: str | os.PathLike, subjects: list[str], conditions:
     return rows
 
 
+def _within(goal: tuple[float, float], delta_qe_pp: float, delta_pe_deg: float) -> bool:
+    """Whether |ΔQE| and |ΔPE| are within a goal (pp, deg)."""
+    return abs(delta_qe_pp) <= goal[0] and abs(delta_pe_deg) <= goal[1]
+
+
 def goal_lines(rows: list[dict]) -> list[str]:
     """One line per subject and goal condition: met or missed, with the numbers."""
     lines = []
@@ -147,14 +152,13 @@ def goal_lines(rows: list[dict]) -> list[str]:
         goal = GOALS.get(row["condition"])
         if goal is None:
             continue
-        met = abs(row["delta_qe_pp"]) <= goal[0] and abs(row["delta_pe_deg"]) <= goal[1]
+        verdict = "met" if _within(goal, row["delta_qe_pp"], row["delta_pe_deg"]) else "MISSED"
         lines.append(f"{row['subject']} {row['condition']}: ΔQE {row['delta_qe_pp']:+.2f} pp (goal ±{goal[0]:g}), "
-                     f"ΔPE {row['delta_pe_deg']:+.2f}° (goal ±{goal[1]:g}): {'met' if met else 'MISSED'}")
+                     f"ΔPE {row['delta_pe_deg']:+.2f}° (goal ±{goal[1]:g}): {verdict}")
         if row.get("delta_qe_vs_original_pp") is not None:
             qe, pe = row["delta_qe_vs_original_pp"], row["delta_pe_vs_original_deg"]
-            met = abs(qe) <= goal[0] and abs(pe) <= goal[1]
             lines.append(f"{row['subject']} {row['condition']} vs the original head solved here: ΔQE {qe:+.2f} pp, "
-                         f"ΔPE {pe:+.2f}°: {'met' if met else 'MISSED'}")
+                         f"ΔPE {pe:+.2f}°: {'met' if _within(goal, qe, pe) else 'MISSED'}")
     return lines
 
 
@@ -183,7 +187,7 @@ def where_lines(rows: list[dict], regions: list[dict]) -> list[str]:
     lines = []
     for row in rows:
         goal = GOALS.get(row["condition"])
-        if goal is None or (abs(row["delta_qe_pp"]) <= goal[0] and abs(row["delta_pe_deg"]) <= goal[1]):
+        if goal is None or _within(goal, row["delta_qe_pp"], row["delta_pe_deg"]):
             continue
         table = [r for r in regions if r["subject"] == row["subject"] and r["condition"] == row["condition"]]
         if not table:

@@ -93,8 +93,8 @@ def evaluation_conditions(subject: str) -> list[str]:
     evaluation = config["evaluation"]
 
     def chosen(condition: str) -> bool:
-        subjects = evaluation.get(f"{condition}_subjects") or []
-        return condition == "ppm" or not subjects or subject in subjects
+        subjects = evaluation.get(f"{condition}_subjects") or []  # ppm has no such list: always
+        return not subjects or subject in subjects
 
     return [c for c in evaluation["conditions"] if chosen(c)]
 

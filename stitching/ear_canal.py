@@ -41,10 +41,16 @@ def ear_canal_elements(mesh: trimesh.Trimesh, side: str, min_area_mm2: float = 4
     else:
         weights = mesh.area_faces[floor]
         centre = (mesh.triangles_center[floor] * weights[:, None]).sum(axis=0) / weights.sum()
+    return faces_around(mesh, centre, direction, min_area_mm2)
+
+
+def faces_around(mesh: trimesh.Trimesh, point_mm: np.ndarray, direction: np.ndarray,
+                 min_area_mm2: float) -> np.ndarray:
+    """The outward-facing faces (normal along ``direction``) whose centres lie nearest ``point_mm``, as few as
+    reach ``min_area_mm2`` together; sorted face indices."""
     outward = np.flatnonzero(mesh.face_normals @ direction > 0.0)
-    order = outward[np.argsort(np.linalg.norm(mesh.triangles_center[outward] - centre, axis=1))]
-    area = np.cumsum(mesh.area_faces[order])
-    count = int(np.searchsorted(area, min_area_mm2)) + 1
+    order = outward[np.argsort(np.linalg.norm(mesh.triangles_center[outward] - point_mm, axis=1))]
+    count = int(np.searchsorted(np.cumsum(mesh.area_faces[order]), min_area_mm2)) + 1
     return np.sort(order[:count]).astype(np.int64)
 
 

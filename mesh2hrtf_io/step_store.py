@@ -2,9 +2,9 @@
 
 Hours of NumCalc must survive the end of a session and a fresh clone. A store folder holds, per source
 and step, ``source_N/step_KKK.npz``: the complex pressures at the evaluation nodes (Pa, e^{-iωt}, as
-NumCalc writes them), the node IDs, the step's frequency and the project's fingerprint. The fingerprint
-is the SHA-256 of everything the result depends on: the object and grid meshes and the source's NC.inp
-(frequencies, ear elements, cluster size). A stored step is restored into ``be.out/be.K`` only when
+NumCalc writes them), the node IDs, the step's frequency, the project's fingerprint and when it was saved
+(UTC). The fingerprint is the SHA-256 of everything the result depends on: the object and grid meshes and
+the source's NC.inp (frequencies, ear elements, cluster size). A stored step is restored into ``be.out/be.K`` only when
 the fingerprint matches, so a changed mesh or setting is solved again instead of reusing a stale
 result. Files are small (~13 kB per step for 793 points) and written atomically.
 """
@@ -14,6 +14,7 @@ import hashlib
 import json
 import io
 import os
+import time
 from pathlib import Path
 
 import numpy as np
@@ -59,7 +60,8 @@ def save_step(project_dir: str | os.PathLike, source: int, step: int, store: str
     buffer = io.BytesIO()
     np.savez_compressed(buffer, pressure=pressure.astype(np.complex128), node_ids=nodes.astype(np.int64),
                         frequency_hz=float(project.frequencies_hz[step - 1]),
-                        fingerprint=fingerprint, status_json=json.dumps(status or {}))
+                        fingerprint=fingerprint, status_json=json.dumps(status or {}),
+                        saved_utc=time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()))
     target.parent.mkdir(parents=True, exist_ok=True)
     with atomic_path(target) as tmp:
         Path(tmp).write_bytes(buffer.getvalue())

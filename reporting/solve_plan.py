@@ -1,10 +1,12 @@
 """What a NumCalc run will cost, printed before it starts.
 
 Per subject and head variant: the frequency steps to solve, how many of them the step store already holds
-(restored instead of solved when the rebuilt head is identical), and the solver hours of the rest, estimated
-from the seconds recorded with every stored step at the same step (the median over the heads solved so far: a
-step's cost depends on its frequency, NumCalc iterating longest at the lowest and doing the most work at the highest). NumCalc runs one single-threaded process per step, so the wall
-clock is about the solver hours divided by the cores.
+for this head (restored instead of solved: the fingerprint of the rebuilt head matches) and how many it holds
+for an earlier head (a changed mesh or source: solved again), and the solver hours of the rest, estimated from
+the seconds recorded with every stored step at the same step (the median over the heads solved so far: a
+step's cost depends on its frequency, NumCalc iterating longest at the lowest and doing the most work at the
+highest). NumCalc runs one single-threaded process per step, so the wall clock is about the solver hours
+divided by the cores.
 """
 from __future__ import annotations
 
@@ -34,25 +36,65 @@ def measured_step_seconds(store_root: str | os.PathLike) -> dict[int, float]:
     return {step: float(np.median(values)) for step, values in seconds.items()}
 
 
+def _stored_fingerprints(folder: Path, n_steps: int) -> dict[int, tuple[str, str]]:
+    """Step number -> (fingerprint of the head the stored step of one source was solved for, when it was saved
+    (ISO UTC; "" for steps stored before the store kept it))."""
+    prints = {}
+    for step in range(1, n_steps + 1):
+        path = folder / f"step_{step:03d}.npz"
+        if path.is_file():
+            with np.load(path) as stored:
+                saved = str(stored["saved_utc"]) if "saved_utc" in stored.files else ""
+                prints[step] = (str(stored["fingerprint"]), saved)
+    return prints
+
+
+def _latest_head(prints: dict[int, tuple[str, str]]) -> str | None:
+    """The fingerprint most likely to be the head's before it is exported: that of the most recently saved
+    step (the largest group where no step records when it was saved)."""
+    if not prints:
+        return None
+    count = {}
+    for fingerprint, _saved in prints.values():
+        count[fingerprint] = count.get(fingerprint, 0) + 1
+    return max(prints.values(), key=lambda item: (item[1], count[item[0]]))[0]
+
+
 def plan_rows(store_root: str | os.PathLike | None, heads: list[tuple[str, str]], n_steps: int,
-              sources: list[int]) -> list[dict]:
-    """One row per (subject, variant): steps in all, steps stored, steps to solve and their estimated solver
-    hours (None where no stored step of that number has a recorded time)."""
+              sources: list[int], projects: dict[tuple[str, str], str | os.PathLike] | None = None) -> list[dict]:
+    """One row per (subject, variant): steps in all, steps stored, how many of those belong to the head (the rest
+    were solved for an earlier head and are solved again), steps to solve and their estimated solver hours (None
+    where no stored step of that number has a recorded time).
+
+    A stored step is restored only when its fingerprint matches the exported project. Where ``projects`` names
+    an exported project of a head, its fingerprint decides (``checked``); before the export, the steps sharing
+    the fingerprint of the most recently saved one are counted as the head's (a guess: the head may yet
+    differ) and the rest as stale.
+    """
+    from mesh2hrtf_io.step_store import project_fingerprint  # noqa: PLC0415
+
     measured = measured_step_seconds(store_root) if store_root else {}
+    projects = projects or {}
     rows = []
     for subject, variant in heads:
-        stored = 0
+        stored = usable = 0
         to_solve: list[int] = []
+        project = projects.get((subject, variant))
+        checked = project is not None and Path(project, "NumCalc").is_dir()
         for source in sources:
             folder = Path(store_root) / subject / variant / f"source_{source}" if store_root else None
+            prints = _stored_fingerprints(folder, n_steps) if folder is not None and folder.is_dir() else {}
+            current = project_fingerprint(project, source) if checked else _latest_head(prints)
+            stored += len(prints)
             for step in range(1, n_steps + 1):
-                if folder is not None and (folder / f"step_{step:03d}.npz").is_file():
-                    stored += 1
+                if step in prints and prints[step][0] == current:
+                    usable += 1
                 else:
                     to_solve.append(step)
         known = [measured[s] for s in to_solve if s in measured]
         hours = sum(known) / 3600.0 if len(known) == len(to_solve) else None
         rows.append({"subject": subject, "variant": variant, "steps": n_steps * len(sources), "stored": stored,
+                     "usable": usable, "stale": stored - usable, "checked": checked,
                      "to_solve": len(to_solve), "solver_hours": hours})
     return rows
 
@@ -62,8 +104,16 @@ def plan_text(rows: list[dict], cores: int) -> str:
     lines = ["NumCalc solve plan (steps kept in the step store are restored when the rebuilt head is identical):"]
     for r in rows:
         estimate = f"~{r['solver_hours']:.1f} solver h" if r["solver_hours"] is not None else "no estimate yet"
+        if r["stored"] == 0:
+            kept = "0 stored"
+        elif r["checked"]:
+            kept = f"{r['usable']} stored for this head"
+        else:
+            kept = f"{r['usable']} stored, not yet checked against the rebuilt head"
+        if r["stale"]:
+            kept += f"; {r['stale']} stored for an earlier head, solved again"
         lines.append(f"  {r['subject']} {r['variant']}: {r['to_solve']} of {r['steps']} steps to solve "
-                     f"({r['stored']} stored), {estimate}")
+                     f"({kept}), {estimate}")
     to_solve = sum(r["to_solve"] for r in rows)
     hours = [r["solver_hours"] for r in rows if r["to_solve"]]
     if to_solve == 0:

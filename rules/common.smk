@@ -375,6 +375,7 @@ def solve_plan_text() -> str | None:
     from reporting.solve_plan import plan_rows, plan_text
 
     heads = [(subject, variant) for subject in SUBJECTS for variant in solved_variants(subject)]
+    projects = {(subject, variant): f"results/{subject}/hrtf/{variant}/project" for subject, variant in heads}
     rows = plan_rows(config["hrtf"]["step_store"] or None, heads, len(hrtf_frequencies()),
-                     [int(s) for s in hrtf_sources()])
+                     [int(s) for s in hrtf_sources()], projects)
     return plan_text(rows, workflow.cores or 1)

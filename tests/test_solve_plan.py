@@ -1,5 +1,8 @@
 """The NumCalc solve plan printed before a run: steps stored vs to solve, and solver hours estimated from the
 committed step store (evaluation/sonicom/steps), whose ppm heads took 4.0-6.1 CPU hours each."""
+import numpy as np
+
+from mesh2hrtf_io.step_store import project_fingerprint
 from reporting.solve_plan import measured_step_seconds, plan_rows, plan_text
 
 from conftest import ROOT
@@ -30,3 +33,46 @@ def test_plan_without_a_store_gives_no_estimate(tmp_path):
     assert rows[0]["to_solve"] == 80 and rows[0]["solver_hours"] is None
     assert "no stored steps to estimate" in plan_text(rows, cores=2)
     assert measured_step_seconds(tmp_path / "missing") == {}
+
+
+def _project(folder, mesh_text: str):
+    """The files a project's fingerprint hashes (meshes, grid, NC.inp), with made-up content."""
+    (folder / "ObjectMeshes" / "Reference").mkdir(parents=True)
+    (folder / "ObjectMeshes" / "Reference" / "Nodes.txt").write_text(mesh_text)
+    (folder / "ObjectMeshes" / "Reference" / "Elements.txt").write_text("1\n")
+    (folder / "EvaluationGrids" / "Sofa").mkdir(parents=True)
+    (folder / "EvaluationGrids" / "Sofa" / "Nodes.txt").write_text("1 0 0 1\n")
+    (folder / "NumCalc" / "source_1").mkdir(parents=True)
+    (folder / "NumCalc" / "source_1" / "NC.inp").write_text("##\n")
+    return folder
+
+
+def _store_step(store, step: int, fingerprint: str, saved_utc: str | None):
+    folder = store / "S1" / "ppm" / "source_1"
+    folder.mkdir(parents=True, exist_ok=True)
+    extra = {"saved_utc": saved_utc} if saved_utc is not None else {}
+    np.savez(folder / f"step_{step:03d}.npz", pressure=np.zeros(1, complex), node_ids=np.ones(1, int),
+             frequency_hz=100.0 * step, fingerprint=fingerprint, status_json="{}", **extra)
+
+
+def test_steps_stored_for_an_earlier_head_count_as_to_solve(tmp_path):
+    """A head re-solved after a change (e.g. the ear source moved): steps 1-6 of the old head, 1-2 of the new."""
+    new_head = _project(tmp_path / "new", "1 0 0 0\n")
+    old_head = _project(tmp_path / "old", "1 0 0 0.001\n")
+    store = tmp_path / "store"
+    for step in range(1, 7):
+        _store_step(store, step, project_fingerprint(old_head, 1), None)
+    for step in (1, 2):  # the new head's steps overwrite the old ones
+        _store_step(store, step, project_fingerprint(new_head, 1), "2026-12-01T10:00:00Z")
+    checked = plan_rows(store, [("S1", "ppm")], 8, [1], {("S1", "ppm"): new_head})[0]
+    assert (checked["stored"], checked["usable"], checked["stale"], checked["to_solve"]) == (6, 2, 4, 6)
+    assert checked["checked"]
+    text = plan_text([checked], cores=2)
+    assert "6 of 8 steps to solve (2 stored for this head; 4 stored for an earlier head, solved again)" in text
+    # before the export: the most recently saved steps are taken for the head's
+    guessed = plan_rows(store, [("S1", "ppm")], 8, [1], {("S1", "ppm"): tmp_path / "not_exported"})[0]
+    assert (guessed["usable"], guessed["stale"], guessed["checked"]) == (2, 4, False)
+    assert "not yet checked against the rebuilt head" in plan_text([guessed], cores=2)
+    # the old head rebuilt: its 4 remaining steps are restorable, the new head's 2 are not
+    back = plan_rows(store, [("S1", "ppm")], 8, [1], {("S1", "ppm"): old_head})[0]
+    assert (back["usable"], back["to_solve"]) == (4, 4)

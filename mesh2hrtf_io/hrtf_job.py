@@ -26,10 +26,13 @@ SOURCE_TYPES = {"both": "Both ears", "left": "Left ear", "right": "Right ear"}
 
 
 def export_head_project(head_path: str | os.PathLike, project: str | os.PathLike, settings: dict,
-                        grid_sofa: str | os.PathLike | None = None, title: str | None = None) -> None:
+                        grid_sofa: str | os.PathLike | None = None, title: str | None = None,
+                        head_store: str | os.PathLike | None = None) -> None:
     """Export ``head_path`` (mm) with ear-canal sources (config hrtf.ears) and the configured frequencies, on
     the sagittal-plane grid or, with ``grid_sofa``, on that SOFA file's source positions (grid "Directions",
-    e.g. the reference HRIRs' 793, so that solved and reference sets combine direction by direction)."""
+    e.g. the reference HRIRs' 793, so that solved and reference sets combine direction by direction). With
+    ``head_store`` (the variant's step store folder, for heads the pipeline built), the head is kept there too
+    (:func:`mesh2hrtf_io.step_store.save_head`), so that a fresh clone solves, and restores, the very same mesh."""
     import trimesh  # noqa: PLC0415
 
     from stitching.ear_canal import ear_canal_elements  # noqa: PLC0415
@@ -48,6 +51,10 @@ def export_head_project(head_path: str | os.PathLike, project: str | os.PathLike
                            compute_hrirs=True, numcalc_cluster_size=settings.get("numcalc_cluster_size", "auto"))
     log.info("exported %s: %d elements, ears %s, %s", project, layout.n_object_elements, layout.ear_ranges,
              describe_set(frequencies))
+    if head_store:
+        from .step_store import save_head  # noqa: PLC0415
+
+        log.info("head kept as %s", save_head(head_path, head_store))
 
 
 def solve_numcalc_steps(project: str | os.PathLike, source: int, steps, status_path: str | os.PathLike,

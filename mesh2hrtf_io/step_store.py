@@ -7,22 +7,33 @@ NumCalc writes them), the node IDs, the step's frequency, the project's fingerpr
 the source's NC.inp (frequencies, ear elements, cluster size). A stored step is restored into ``be.out/be.K`` only when
 the fingerprint matches, so a changed mesh or setting is solved again instead of reusing a stale
 result. Files are small (~13 kB per step for 793 points) and written atomically.
+
+A head the pipeline built (PPM head, controls) is kept beside its steps as ``head.ply``, byte for byte, with
+``head.json`` (SHA-256, triangles, when saved): align, stitch and remesh give bit-identical meshes when rerun on
+one machine but not on another CPU (P143's PPM head came out with 27,598 triangles on one machine and 27,594 on
+the next), and a step's fingerprint depends on every byte of the mesh. A fresh clone exports the stored head
+instead of its own rebuild, so its steps are restored; delete ``head.ply`` to solve a rebuilt head instead.
 """
 from __future__ import annotations
 
 import hashlib
-import json
 import io
+import json
+import logging
 import os
+import shutil
 import time
 from pathlib import Path
 
 import numpy as np
 
-from ppm.atomic import atomic_path
+from ppm.atomic import atomic_path, write_text_atomic
 
 from .project_reader import read_project
 from .results import read_eval_grid_pressure, step_is_complete, write_eval_grid_pressure
+
+log = logging.getLogger(__name__)
+HEAD_FILE = "head.ply"
 
 
 def project_fingerprint(project_dir: str | os.PathLike, source: int) -> str:
@@ -102,3 +113,39 @@ def solve_seconds(status: dict | None) -> float:
     if "attempts" in status:
         return float(sum(attempt.get("seconds", 0.0) for attempt in status["attempts"]))
     return float(status.get("seconds", 0.0))
+
+
+def stored_head(store: str | os.PathLike | None) -> Path | None:
+    """The head mesh kept in a variant's store folder (``head.ply``, mm), None when there is none."""
+    if not store:
+        return None
+    path = Path(store) / HEAD_FILE
+    return path if path.is_file() else None
+
+
+def _sha256(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def save_head(head_path: str | os.PathLike, store: str | os.PathLike) -> Path:
+    """Keep ``head_path`` (the head a variant's steps are solved for, mm) as the store's ``head.ply``, byte for
+    byte and with its modification time (so Snakemake does not take it for a newer input than the project
+    exported from it), and write ``head.json``. A stored head that differs is replaced (its steps no longer
+    match any project and are solved again), with a warning."""
+    import trimesh  # noqa: PLC0415
+
+    head_path, target = Path(head_path), Path(store) / HEAD_FILE
+    digest = _sha256(head_path)
+    if target.is_file():
+        if target.resolve() == head_path.resolve() or _sha256(target) == digest:
+            return target
+        log.warning("%s: replacing the stored head (SHA-256 %s) by %s (%s); the steps stored for the old head "
+                    "are solved again", target, _sha256(target)[:16], head_path, digest[:16])
+    target.parent.mkdir(parents=True, exist_ok=True)
+    with atomic_path(target) as tmp:
+        shutil.copy2(head_path, tmp)
+    faces = len(trimesh.load(target, process=False, force="mesh").faces)
+    write_text_atomic(target.with_suffix(".json"), json.dumps(
+        {"sha256": digest, "triangles": faces, "copied_from": str(head_path),
+         "saved_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}, indent=2) + "\n")
+    return target

@@ -62,7 +62,7 @@ def _latest_head(prints: dict[int, tuple[str, str]]) -> str | None:
 
 def plan_rows(store_root: str | os.PathLike | None, heads: list[tuple[str, str]], n_steps: int,
               sources: list[int], projects: dict[tuple[str, str], str | os.PathLike] | None = None) -> list[dict]:
-    """One row per (subject, variant): steps in all, steps stored, how many of those belong to the head (the rest
+    """One row per (subject, variant): whether the store keeps the head, steps in all, steps stored, how many of those belong to the head (the rest
     were solved for an earlier head and are solved again), steps to solve and their estimated solver hours (None
     where no stored step of that number has a recorded time).
 
@@ -71,7 +71,7 @@ def plan_rows(store_root: str | os.PathLike | None, heads: list[tuple[str, str]]
     the fingerprint of the most recently saved one are counted as the head's (a guess: the head may yet
     differ) and the rest as stale.
     """
-    from mesh2hrtf_io.step_store import project_fingerprint  # noqa: PLC0415
+    from mesh2hrtf_io.step_store import project_fingerprint, stored_head  # noqa: PLC0415
 
     measured = measured_step_seconds(store_root) if store_root else {}
     projects = projects or {}
@@ -93,7 +93,9 @@ def plan_rows(store_root: str | os.PathLike | None, heads: list[tuple[str, str]]
                     to_solve.append(step)
         known = [measured[s] for s in to_solve if s in measured]
         hours = sum(known) / 3600.0 if len(known) == len(to_solve) else None
-        rows.append({"subject": subject, "variant": variant, "steps": n_steps * len(sources), "stored": stored,
+        kept = stored_head(Path(store_root) / subject / variant) if store_root else None
+        rows.append({"subject": subject, "variant": variant, "head_stored": kept is not None,
+                     "steps": n_steps * len(sources), "stored": stored,
                      "usable": usable, "stale": stored - usable, "checked": checked,
                      "to_solve": len(to_solve), "solver_hours": hours})
     return rows
@@ -112,8 +114,9 @@ def plan_text(rows: list[dict], cores: int) -> str:
             kept = f"{r['usable']} stored, not yet checked against the rebuilt head"
         if r["stale"]:
             kept += f"; {r['stale']} stored for an earlier head, solved again"
+        head = ", head from the store" if r.get("head_stored") else ""
         lines.append(f"  {r['subject']} {r['variant']}: {r['to_solve']} of {r['steps']} steps to solve "
-                     f"({kept}), {estimate}")
+                     f"({kept}){head}, {estimate}")
     to_solve = sum(r["to_solve"] for r in rows)
     hours = [r["solver_hours"] for r in rows if r["to_solve"]]
     if to_solve == 0:

@@ -84,6 +84,7 @@ def template_params():
 
 HRTF_VARIANTS = ("reference", "original", "ppm", "own_pinna", "default_ppm")
 CONTROLS = ("own_pinna", "default_ppm")
+BUILT_HEADS = ("ppm",) + CONTROLS  # heads this pipeline makes (kept in the step store beside their steps)
 
 
 def evaluation_conditions(subject: str) -> list[str]:
@@ -118,14 +119,21 @@ def hrtf_frequencies():
 def head_mesh_of(subject: str, variant: str) -> str:
     """The head mesh (mm) whose HRTFs a subject's variant stands for ("original": the reference head itself, solved
     here as an evaluation condition, so that the solved conditions are also compared with this pipeline's own
-    solve of the unchanged head)."""
+    solve of the unchanged head). A head the pipeline builds (BUILT_HEADS) is taken from the step store when it
+    keeps one (``head.ply``, saved at the export): its stored steps were solved for exactly that mesh, which a
+    rebuild on another machine does not reproduce bit for bit."""
     if variant in ("reference", "original"):
         return str(DATA_ROOT / subject / config["hrtf"]["reference_head"])
+    if variant not in BUILT_HEADS:
+        raise ValueError(f"unknown HRTF variant {variant!r}; known: {HRTF_VARIANTS}")
+    from mesh2hrtf_io.step_store import stored_head
+
+    kept = stored_head(store_of(subject, variant))
+    if kept is not None:
+        return str(kept)
     if variant == "ppm":
         return f"results/{subject}/remesh/head.ply"
-    if variant in CONTROLS:
-        return f"results/{subject}/controls/{variant}/head.ply"
-    raise ValueError(f"unknown HRTF variant {variant!r}; known: {HRTF_VARIANTS}")
+    return f"results/{subject}/controls/{variant}/head.ply"
 
 
 def hrtf_head_mesh(wildcards):

@@ -18,6 +18,7 @@ rule export_project:
     params:
         settings=lambda wc: config["hrtf"],
         title=lambda wc: f"{wc.subject}_{wc.variant}",
+        head_store=lambda wc: store_of(wc.subject, wc.variant) if wc.variant in BUILT_HEADS else None,
     threads: 1
     resources:
         mem_mb=measured_mem_mb("export_project"),

@@ -11,7 +11,7 @@ from mesh2hrtf_io import sphere_grid, write_project
 from mesh2hrtf_io.hrtf_job import solve_numcalc_steps
 from mesh2hrtf_io.project_reader import read_project
 from mesh2hrtf_io.results import read_eval_grid_pressure, step_is_complete, write_eval_grid_pressure
-from mesh2hrtf_io.step_store import project_fingerprint, restore_step, save_step
+from mesh2hrtf_io.step_store import project_fingerprint, restore_step, save_head, save_step, stored_head
 from stitching.ear_canal import ear_canal_elements
 
 FREQUENCIES = [500.0, 1000.0, 2000.0]
@@ -63,3 +63,42 @@ def test_the_numcalc_job_restores_stored_steps_without_numcalc(tmp_path, monkeyp
     assert [s["restored_from"] for s in status["steps"]] == [str(tmp_path / "store")] * 3
     for step in (1, 2, 3):
         np.testing.assert_allclose(read_eval_grid_pressure(tmp_path / "fresh" / "NumCalc" / "source_1", step), step)
+
+
+def test_a_built_head_is_kept_byte_for_byte_beside_its_steps(tmp_path):
+    head = trimesh.creation.icosphere(subdivisions=2, radius=87.5)
+    built = tmp_path / "results" / "head.ply"
+    built.parent.mkdir()
+    head.export(built)
+    store = tmp_path / "store" / "S1" / "ppm"
+    assert stored_head(store) is None and stored_head(None) is None
+    kept = save_head(built, store)
+    assert kept == stored_head(store) and kept.read_bytes() == built.read_bytes()
+    # the built head's time, so that a workflow does not take the kept copy for an input newer than the project
+    assert kept.stat().st_mtime == built.stat().st_mtime
+    info = json.loads((store / "head.json").read_text())
+    assert info["triangles"] == 320 and len(info["sha256"]) == 64
+    assert save_head(kept, store) == kept  # exporting the kept head keeps it as it is
+    # a rebuilt head that differs (another machine's rounding) replaces it: its steps are solved again
+    trimesh.creation.icosphere(subdivisions=2, radius=87.6).export(built)
+    save_head(built, store)
+    assert kept.read_bytes() == built.read_bytes() and json.loads((store / "head.json").read_text())["sha256"] != info["sha256"]
+    assert not list(store.glob(".*partial*"))
+
+
+def test_exporting_with_a_head_store_keeps_the_head_and_its_steps_restore_on_a_fresh_export(tmp_path):
+    from mesh2hrtf_io.hrtf_job import export_head_project
+
+    built = tmp_path / "built" / "head.ply"
+    built.parent.mkdir()
+    trimesh.creation.icosphere(subdivisions=2, radius=87.5).export(built)
+    settings = {"ears": "left", "frequencies_hz": {"list": FREQUENCIES}, "polar_step_deg": 30.0}
+    store = tmp_path / "store"
+    export_head_project(built, tmp_path / "first", settings, title="S1_ppm", head_store=store)
+    project = read_project(tmp_path / "first")
+    _solve_fake(project, 1, 1.0 + 0.5j)
+    save_step(tmp_path / "first", 1, 1, store)
+    # a fresh clone: no rebuilt head, the project exported from the stored one takes the stored step
+    export_head_project(stored_head(store), tmp_path / "fresh", settings, title="S1_ppm", head_store=store)
+    assert project_fingerprint(tmp_path / "fresh", 1) == project_fingerprint(tmp_path / "first", 1)
+    assert restore_step(tmp_path / "fresh", 1, 1, store)

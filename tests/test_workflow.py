@@ -313,3 +313,15 @@ def test_one_ear_on_the_reference_directions_is_collected_and_completed_by_the_r
     assert summary["conditions"]["reference"]["qe_percent"] == pytest.approx(8.0, abs=0.01)
     assert summary["conditions"]["ppm"]["qe_percent"] > summary["conditions"]["reference"]["qe_percent"] + 5.0
     assert len(list((work / "store/S1/ppm/source_1").glob("step_*.npz"))) == 40
+    # the head is kept beside its steps; a fresh clone without the rebuilt head exports the kept one and restores
+    # every step instead of solving
+    assert (work / "store/S1/ppm/head.ply").read_bytes() == (work / "results/S1/remesh/head.ply").read_bytes()
+    shutil.rmtree(work / "results/S1/remesh")
+    shutil.rmtree(work / "results/S1/hrtf")
+    shutil.rmtree(work / "results/S1/localisation")
+    again = _run([target, "--cores", "2", "--configfile", str(path), "--allowed-rules", "export_project",
+                  "solve_embedded", "collect_sofa", "localisation"], work, timeout=900)
+    assert again.returncode == 0, (again.stdout + again.stderr)[-3000:]
+    embedded = json.loads((work / "results/S1/hrtf/embedded.json").read_text())
+    assert embedded["projects"]["ppm"]["steps_restored"] == 40
+    assert json.loads((work / target).read_text())["conditions"]["ppm"] == summary["conditions"]["ppm"]

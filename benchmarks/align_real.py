@@ -21,7 +21,7 @@ import bpy  # noqa: F401  (before pymeshlab)
 import numpy as np
 import trimesh
 
-from ppm.align import align, prepare_target
+from ppm.align import AlignSettings, align, prepare_target
 from ppm.align.report import distance_summary, one_sided_distances_mm
 from ppm.align.synthetic import synthetic_scan
 from ppm.model import PinnaModel
@@ -61,13 +61,30 @@ def parameter_group(spec) -> str:
     return "bendy_scale" if spec.kind == "scale" else "shape_key"
 
 
+def region_medians(template_dir: Path, vertices_mm: np.ndarray, points_mm: np.ndarray,
+                   distance_mm: np.ndarray) -> dict[str, float]:
+    """Median scan -> PPM distance (mm) per anatomical region, the regions taken from the landmarks on the fitted
+    PPM (reporting/pinna_regions.py, as the evaluation's regions.csv)."""
+    from ppm.landmarks import read_landmark_file  # noqa: PLC0415
+    from reporting.pinna_regions import label_points, region_table  # noqa: PLC0415
+
+    marks = read_landmark_file(template_dir / "landmarks.yaml")
+    positions = {name: vertices_mm[int(entry["vertex"])] for name, entry in marks.items()}
+    return {row["region"]: round(row["median_mm"], 3)
+            for row in region_table(label_points(points_mm, positions), distance_mm)}
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--data-root", type=Path, default=ROOT.parent / "shared" / "data" / "sonicom")
     parser.add_argument("--templates", type=Path, default=ROOT / "results" / "templates")
     parser.add_argument("--cache", type=Path, default=ROOT / "results" / "benchmarks" / "templates")
     parser.add_argument("--synthetic", type=int, default=5, help="number of synthetic scans")
+    parser.add_argument("--normal-min-cosine", type=float, default=None,
+                        help="ignore scan -> model pairs whose normals meet at a cosine below this (default: keep all)")
     args = parser.parse_args()
+    settings = AlignSettings(normal_min_cosine=args.normal_min_cosine)
+    print(f"alignment settings: normal_min_cosine = {args.normal_min_cosine}")
 
     subjects = sorted(p.name for p in args.data_root.iterdir() if (p / "pinna_left_crop.ply").is_file())
     rows = {}
@@ -75,23 +92,27 @@ def main() -> None:
         template_dir = loo_template(args.data_root, subject, args.templates, args.cache)
         model = PinnaModel.from_template(template_dir)
         target = prepare_target(args.data_root / subject / "pinna_left_crop.ply")
-        result = align(model, target)
-        ppm = distance_summary(one_sided_distances_mm(target, result.vertices_mm, model.faces))
+        result = align(model, target, settings)
+        distance = one_sided_distances_mm(target, result.vertices_mm, model.faces)
+        ppm = distance_summary(distance)
+        regions = region_medians(template_dir, result.vertices_mm, target.points_mm, distance)
         nricp, nricp_seconds = nricp_baseline(model.mesh(), target)
         rows[subject] = {"median_mm": ppm["median_mm"], "p95_mm": ppm["p95_mm"], "mean_mm": ppm["mean_mm"],
                          "share_under_1mm": ppm["share_under_1mm"], "seconds": round(result.seconds, 1),
                          "nricp_median_mm": nricp["median_mm"], "nricp_p95_mm": nricp["p95_mm"],
-                         "nricp_seconds": round(nricp_seconds, 1), "warnings": result.warnings}
+                         "nricp_seconds": round(nricp_seconds, 1), "region_median_mm": regions,
+                         "warnings": result.warnings}
         print(f"{subject}: PPM median {ppm['median_mm']:.3f} mm, p95 {ppm['p95_mm']:.3f} mm, mean {ppm['mean_mm']:.3f} mm, "
               f"{100 * ppm['share_under_1mm']:.1f} % < 1 mm, {result.seconds:.1f} s | NRICP median "
               f"{nricp['median_mm']:.3f} mm, p95 {nricp['p95_mm']:.3f} mm, {nricp_seconds:.1f} s", flush=True)
+        print(f"{subject}: PPM median per region (mm): {regions}", flush=True)
 
     model = PinnaModel.from_template()
     rng = np.random.default_rng(2026)
     synthetic_medians, vertex_errors, surface_errors, group_errors = [], [], [], {}
     for index in range(args.synthetic):
         target, truth = synthetic_scan(model, rng)
-        result = align(model, target)
+        result = align(model, target, settings)
         distance = one_sided_distances_mm(target, result.vertices_mm, model.faces)
         truth_vertices = model.evaluate(truth)
         vertex_error = np.linalg.norm(result.vertices_mm - truth_vertices, axis=1)

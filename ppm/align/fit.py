@@ -52,6 +52,7 @@ class AlignSettings:
     fold_cosine: float = 0.5            # a face whose normal turns more than 60° from the template's ...
     fold_weight: float = 1.0            # ... costs fold_weight * (fold_cosine - cos(turn))^2 (barrier against folds)
     ring_exclusion_mm: float = 4.0      # template vertices this close to its outer ring are not pulled
+    normal_min_cosine: float | None = None  # scan -> model pairs whose normals meet at a cosine below this are ignored
     start_angles_deg: tuple[float, ...] = (0.0, 15.0, -15.0)
     stages: tuple[tuple[str, int], ...] = (("parent", 10), ("bones", 12), ("shape_keys", 8), ("all", 20))
     relative_tolerance: float = 2e-3
@@ -133,6 +134,8 @@ class _Problem:
         on_surface = np.einsum("ij,ijk->ik", bary, tri)
         r_a = np.einsum("ij,ij->i", on_surface - self.points, normal)
         keep_a = distance < s.trim_mm
+        if s.normal_min_cosine is not None:  # a scan point facing away from its closest surface (a cavity's far wall)
+            keep_a &= np.einsum("ij,ij->i", normal, self.target_normals) > s.normal_min_cosine
         d_b, j = self.target_tree.query(vertices[self.inner])
         n_b = self.all_normals[j]
         r_b = np.einsum("ij,ij->i", vertices[self.inner] - self.all_points[j], n_b)

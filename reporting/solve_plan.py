@@ -60,6 +60,9 @@ def _latest_head(prints: dict[int, tuple[str, str]]) -> str | None:
     return max(prints.values(), key=lambda item: (item[1], count[item[0]]))[0]
 
 
+BUILT_HEADS = ("ppm", "own_pinna", "default_ppm")  # heads the pipeline makes; kept in the store beside their steps
+
+
 def plan_rows(store_root: str | os.PathLike | None, heads: list[tuple[str, str]], n_steps: int,
               sources: list[int], projects: dict[tuple[str, str], str | os.PathLike] | None = None) -> list[dict]:
     """One row per (subject, variant): whether the store keeps the head, steps in all, steps stored, how many of those belong to the head (the rest
@@ -69,7 +72,8 @@ def plan_rows(store_root: str | os.PathLike | None, heads: list[tuple[str, str]]
     A stored step is restored only when its fingerprint matches the exported project. Where ``projects`` names
     an exported project of a head, its fingerprint decides (``checked``); before the export, the steps sharing
     the fingerprint of the most recently saved one are counted as the head's (a guess: the head may yet
-    differ) and the rest as stale.
+    differ) and the rest as stale, except for a head the pipeline builds (BUILT_HEADS) that the store does not
+    keep: a rebuild on another machine is not the same mesh, so its steps count as stale.
     """
     from mesh2hrtf_io.step_store import project_fingerprint, stored_head  # noqa: PLC0415
 
@@ -81,10 +85,12 @@ def plan_rows(store_root: str | os.PathLike | None, heads: list[tuple[str, str]]
         to_solve: list[int] = []
         project = projects.get((subject, variant))
         checked = project is not None and Path(project, "NumCalc").is_dir()
+        kept = stored_head(Path(store_root) / subject / variant) if store_root else None
+        unknown_head = variant in BUILT_HEADS and kept is None and not checked
         for source in sources:
             folder = Path(store_root) / subject / variant / f"source_{source}" if store_root else None
             prints = _stored_fingerprints(folder, n_steps) if folder is not None and folder.is_dir() else {}
-            current = project_fingerprint(project, source) if checked else _latest_head(prints)
+            current = project_fingerprint(project, source) if checked else None if unknown_head else _latest_head(prints)
             stored += len(prints)
             for step in range(1, n_steps + 1):
                 if step in prints and prints[step][0] == current:
@@ -93,17 +99,16 @@ def plan_rows(store_root: str | os.PathLike | None, heads: list[tuple[str, str]]
                     to_solve.append(step)
         known = [measured[s] for s in to_solve if s in measured]
         hours = sum(known) / 3600.0 if len(known) == len(to_solve) else None
-        kept = stored_head(Path(store_root) / subject / variant) if store_root else None
         rows.append({"subject": subject, "variant": variant, "head_stored": kept is not None,
                      "steps": n_steps * len(sources), "stored": stored,
-                     "usable": usable, "stale": stored - usable, "checked": checked,
+                     "usable": usable, "stale": stored - usable, "checked": checked, "unknown_head": unknown_head,
                      "to_solve": len(to_solve), "solver_hours": hours})
     return rows
 
 
 def plan_text(rows: list[dict], cores: int) -> str:
     """The plan as lines for the terminal, with the total and the wall clock on `cores` cores."""
-    lines = ["NumCalc solve plan (steps kept in the step store are restored when the rebuilt head is identical):"]
+    lines = ["NumCalc solve plan (steps kept in the step store are restored when the exported head is identical):"]
     for r in rows:
         estimate = f"~{r['solver_hours']:.1f} solver h" if r["solver_hours"] is not None else "no estimate yet"
         if r["stored"] == 0:
@@ -112,7 +117,9 @@ def plan_text(rows: list[dict], cores: int) -> str:
             kept = f"{r['usable']} stored for this head"
         else:
             kept = f"{r['usable']} stored, not yet checked against the rebuilt head"
-        if r["stale"]:
+        if r["stale"] and r.get("unknown_head"):
+            kept = f"{r['stale']} stored for a head the store does not keep (a rebuild is not the same mesh), solved again"
+        elif r["stale"]:
             kept += f"; {r['stale']} stored for an earlier head, solved again"
         head = ", head from the store" if r.get("head_stored") else ""
         lines.append(f"  {r['subject']} {r['variant']}: {r['to_solve']} of {r['steps']} steps to solve "

@@ -2,7 +2,9 @@
 committed step store (evaluation/sonicom/steps), whose ppm heads took 4.0-6.1 CPU hours each."""
 import numpy as np
 
-from mesh2hrtf_io.step_store import project_fingerprint
+import trimesh
+
+from mesh2hrtf_io.step_store import project_fingerprint, save_head
 from reporting.solve_plan import measured_step_seconds, plan_rows, plan_text
 
 from conftest import ROOT
@@ -19,13 +21,15 @@ def test_plan_counts_stored_steps_and_estimates_the_rest_from_the_committed_stor
     assert measured[1] > 2 * middle and measured[40] > 2 * middle
     rows = plan_rows(STORE, [("P039", "ppm"), ("S_new", "ppm")], 40, [1])
     stored, new = rows
-    assert (stored["stored"], stored["to_solve"], stored["solver_hours"]) == (40, 0, 0.0)
+    # P039's PPM steps were solved for a head the store does not keep: a rebuild is not the same mesh
+    assert (stored["stored"], stored["usable"], stored["to_solve"], stored["unknown_head"]) == (40, 0, 40, True)
     assert (new["stored"], new["to_solve"]) == (0, 40)
     assert 2.0 < new["solver_hours"] < 8.0
     assert abs(new["solver_hours"] - sum(measured.values()) / 3600.0) < 1e-9
     text = plan_text(rows, cores=2)
     assert "S_new ppm: 40 of 40 steps to solve (0 stored)" in text
-    assert f"~{new['solver_hours'] / 2:.1f} h on 2 core(s)" in text
+    assert "P039 ppm: 40 of 40 steps to solve (40 stored for a head the store does not keep" in text
+    assert f"~{(stored['solver_hours'] + new['solver_hours']) / 2:.1f} h on 2 core(s)" in text
 
 
 def test_plan_without_a_store_gives_no_estimate(tmp_path):
@@ -57,6 +61,7 @@ def _store_step(store, step: int, fingerprint: str, saved_utc: str | None):
 
 def test_steps_stored_for_an_earlier_head_count_as_to_solve(tmp_path):
     """A head re-solved after a change (e.g. the ear source moved): steps 1-6 of the old head, 1-2 of the new."""
+    trimesh.creation.icosphere(subdivisions=1).export(tmp_path / "new_head.ply")
     new_head = _project(tmp_path / "new", "1 0 0 0\n")
     old_head = _project(tmp_path / "old", "1 0 0 0.001\n")
     store = tmp_path / "store"
@@ -69,7 +74,11 @@ def test_steps_stored_for_an_earlier_head_count_as_to_solve(tmp_path):
     assert checked["checked"]
     text = plan_text([checked], cores=2)
     assert "6 of 8 steps to solve (2 stored for this head; 4 stored for an earlier head, solved again)" in text
-    # before the export: the most recently saved steps are taken for the head's
+    # before the export, with no head kept: a built head is rebuilt, so none of its steps counts
+    unkept = plan_rows(store, [("S1", "ppm")], 8, [1], {("S1", "ppm"): tmp_path / "not_exported"})[0]
+    assert (unkept["usable"], unkept["stale"], unkept["unknown_head"]) == (0, 6, True)
+    # with the head kept (or for the dataset's own head), the most recently saved steps are taken for the head's
+    save_head(tmp_path / "new_head.ply", store / "S1" / "ppm")
     guessed = plan_rows(store, [("S1", "ppm")], 8, [1], {("S1", "ppm"): tmp_path / "not_exported"})[0]
     assert (guessed["usable"], guessed["stale"], guessed["checked"]) == (2, 4, False)
     assert "not yet checked against the rebuilt head" in plan_text([guessed], cores=2)

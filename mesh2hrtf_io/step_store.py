@@ -72,7 +72,7 @@ def save_step(project_dir: str | os.PathLike, source: int, step: int, store: str
     np.savez_compressed(buffer, pressure=pressure.astype(np.complex128), node_ids=nodes.astype(np.int64),
                         frequency_hz=float(project.frequencies_hz[step - 1]),
                         fingerprint=fingerprint, status_json=json.dumps(status or {}),
-                        saved_utc=time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()))
+                        saved_utc=_utc_now())
     target.parent.mkdir(parents=True, exist_ok=True)
     with atomic_path(target) as tmp:
         Path(tmp).write_bytes(buffer.getvalue())
@@ -123,8 +123,14 @@ def stored_head(store: str | os.PathLike | None) -> Path | None:
     return path if path.is_file() else None
 
 
-def _sha256(path: Path) -> str:
-    return hashlib.sha256(path.read_bytes()).hexdigest()
+def file_sha256(path: str | os.PathLike) -> str:
+    """SHA-256 (hex) of a file's bytes, e.g. a head mesh's."""
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+def _utc_now() -> str:
+    """The time now, ISO 8601 in UTC (when a step or head was saved)."""
+    return time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
 
 
 def save_head(head_path: str | os.PathLike, store: str | os.PathLike) -> Path:
@@ -135,17 +141,18 @@ def save_head(head_path: str | os.PathLike, store: str | os.PathLike) -> Path:
     import trimesh  # noqa: PLC0415
 
     head_path, target = Path(head_path), Path(store) / HEAD_FILE
-    digest = _sha256(head_path)
+    digest = file_sha256(head_path)
     if target.is_file():
-        if target.resolve() == head_path.resolve() or _sha256(target) == digest:
+        kept = file_sha256(target)
+        if kept == digest:
             return target
         log.warning("%s: replacing the stored head (SHA-256 %s) by %s (%s); the steps stored for the old head "
-                    "are solved again", target, _sha256(target)[:16], head_path, digest[:16])
+                    "are solved again", target, kept[:16], head_path, digest[:16])
     target.parent.mkdir(parents=True, exist_ok=True)
     with atomic_path(target) as tmp:
         shutil.copy2(head_path, tmp)
     faces = len(trimesh.load(target, process=False, force="mesh").faces)
     write_text_atomic(target.with_suffix(".json"), json.dumps(
         {"sha256": digest, "triangles": faces, "copied_from": str(head_path),
-         "saved_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}, indent=2) + "\n")
+         "saved_utc": _utc_now()}, indent=2) + "\n")
     return target

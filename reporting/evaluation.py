@@ -10,7 +10,6 @@ the pinna surface); model -> target is every model vertex to the scan surface, o
 from __future__ import annotations
 
 import csv
-import hashlib
 import html
 import io
 import json
@@ -79,10 +78,6 @@ def condition_distances(target_path: str | os.PathLike, pinna_path: str | os.Pat
     return summary
 
 
-def _sha256(path: Path) -> str:
-    return hashlib.sha256(path.read_bytes()).hexdigest()
-
-
 def solve_cost(status_files: list[str | os.PathLike], store: str | os.PathLike | None) -> dict:
     """Seconds of solving recorded by the step jobs' statuses; restored steps count with the seconds kept in
     the step store (where they were solved), so the total is the CPU time of the result, wherever it was made."""
@@ -107,6 +102,7 @@ def evaluation_rows(results: str | os.PathLike, subjects: list[str], conditions:
                     store: str | os.PathLike | None = None) -> list[dict]:
     """One row per subject and condition (the reference first) with the columns of :data:`COLUMNS`."""
     from mesh2hrtf_io.project_reader import read_project  # noqa: PLC0415
+    from mesh2hrtf_io.step_store import file_sha256  # noqa: PLC0415
 
     results = Path(results)
     rows = []
@@ -135,7 +131,7 @@ def evaluation_rows(results: str | os.PathLike, subjects: list[str], conditions:
                            reverse_p95_mm=distances["model_to_target"]["p95_mm"],
                            solve_cpu_hours=round(cost["seconds"] / 3600.0, 3), n_elements=len(project.faces),
                            steps_solved_here=cost["steps_solved_here"], steps_restored=cost["steps_restored"],
-                           head_sha256=_sha256(Path(heads[subject, condition]))[:16])
+                           head_sha256=file_sha256(heads[subject, condition])[:16])
             rows.append(row)
     return rows
 
@@ -411,8 +407,8 @@ Made by `{command}` (Snakemake; rules/evaluation.smk). Every number below is in 
 - Cost: {cpu:.2f} CPU hours of NumCalc (from the solver statuses kept with every step in `steps/`);
   {wall_clock_hours:.2f} h wall-clock of the jobs of the run that wrote this folder (Snakemake benchmark files;
   restored steps take seconds).
-- `steps/` keeps every solved step with the SHA-256 of its project: a fresh clone restores them instead of solving,
-  as long as it rebuilds the same heads (`head_sha256` in the summary).
+- `steps/` keeps every solved step with the SHA-256 of its project, and every head the pipeline built (`head.ply`):
+  a fresh clone solves those very heads and restores the steps instead of solving (`head_sha256` in the summary).
 
 ## Goals
 

@@ -82,9 +82,11 @@ def main() -> None:
     parser.add_argument("--synthetic", type=int, default=5, help="number of synthetic scans")
     parser.add_argument("--normal-min-cosine", type=float, default=None,
                         help="ignore scan -> model pairs whose normals meet at a cosine below this (default: keep all)")
+    parser.add_argument("--restarts", type=int, default=AlignSettings.restarts,
+                        help=f"basin-hopping refits after the staged fit (default {AlignSettings.restarts}; 0: none)")
     args = parser.parse_args()
-    settings = AlignSettings(normal_min_cosine=args.normal_min_cosine)
-    print(f"alignment settings: normal_min_cosine = {args.normal_min_cosine}")
+    settings = AlignSettings(normal_min_cosine=args.normal_min_cosine, restarts=args.restarts)
+    print(f"alignment settings: normal_min_cosine = {args.normal_min_cosine}, restarts = {args.restarts}")
 
     subjects = sorted(p.name for p in args.data_root.iterdir() if (p / "pinna_left_crop.ply").is_file())
     rows = {}

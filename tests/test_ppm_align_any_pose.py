@@ -9,7 +9,8 @@ from ppm.align import align, prepare_target
 from ppm.align.any_pose import PoseUncertainError, align_any_pose, detect_unit, find_pose
 from ppm.align.defects import defective_scan, levels, random_pose
 from ppm.align.pose import apply_similarity
-from ppm.parameters import bounds, parameter_specs
+from ppm.align.synthetic import add_scan_defects
+from ppm.parameters import bounds, parameter_specs, random_parameters
 from ppm.template.store import load_template
 
 
@@ -48,22 +49,43 @@ def test_a_posed_mirrored_scan_in_metres_is_brought_back_onto_the_head_frame(cro
     assert np.median(np.linalg.norm(moved - expected, axis=1)) < 0.5  # mm
 
 
-def test_a_rotated_cm_scaled_copy_of_a_real_crop_fits_to_the_same_parameters(model, crop, tmp_path):
-    """Fitted through the 'any' path, the head-frame crop and a rotated, offset copy in centimetres give the
-    same pinna: vertices and the parent pose within the synthetic-recovery tolerances of
-    test_ppm_align (median 0.25 / p95 0.8 mm; 0.3 mm, 1 deg), every other parameter within 5 % of its range."""
-    crop.export(tmp_path / "head_frame.ply")
-    rng = np.random.default_rng(11)
-    truth_to_scan = random_pose(rng, "cm")
-    apply_similarity(crop, truth_to_scan).export(tmp_path / "posed_cm.ply")
-    original = prepare_target(tmp_path / "head_frame.ply", scan_pose="any")
-    posed = prepare_target(tmp_path / "posed_cm.ply", scan_pose="any")
+def _fit_in_head_frame_and_posed_in_cm(model, scan: trimesh.Trimesh, folder):
+    """Fits of `scan` (head frame, mm) and of a rotated, offset copy in centimetres, both through the 'any'
+    path; returns both results and the second's vertices (mm) moved into the first's frame."""
+    scan.export(folder / "head_frame.ply")
+    truth_to_scan = random_pose(np.random.default_rng(11), "cm")
+    apply_similarity(scan, truth_to_scan).export(folder / "posed_cm.ply")
+    original = prepare_target(folder / "head_frame.ply", scan_pose="any")
+    posed = prepare_target(folder / "posed_cm.ply", scan_pose="any")
     assert posed.pose["unit"] == "cm" and not posed.pose["mirrored"]
     assert any("pose found: cm" in w for w in posed.warnings)
     first, second = align(model, original), align(model, posed)
     # the two fits live in the frames their scans were brought into; compare them in the first's
     to_first = np.asarray(original.pose["matrix"]) @ np.linalg.inv(np.asarray(posed.pose["matrix"]) @ truth_to_scan)
-    second_vertices = trimesh.transform_points(second.vertices_mm, to_first)
+    return first, second, trimesh.transform_points(second.vertices_mm, to_first), to_first
+
+
+def test_a_rotated_cm_scaled_copy_of_a_real_crop_fits_to_the_same_surface(model, crop, tmp_path):
+    """A real ear: the two fits give the same surface (second's vertices to the first's surface: median 0.03,
+    p95 0.13 mm measured; limits 0.1 / 0.3 mm) and their vertices lie within the synthetic-recovery tolerances
+    of test_ppm_align (median 0.25 / p95 0.8 mm; 0.17 / 0.52 mm measured). Parameters are not compared: on a
+    real ear bones and shape keys trade off (cost minima a few per cent apart; one shape key ended 16 % of its
+    range apart for the same surface), which the synthetic test below has no room for."""
+    first, second, second_vertices, _ = _fit_in_head_frame_and_posed_in_cm(model, crop, tmp_path)
+    first_surface = trimesh.Trimesh(first.vertices_mm, model.faces, process=False)
+    to_surface = trimesh.proximity.closest_point(first_surface, second_vertices)[1]
+    assert np.median(to_surface) < 0.1 and np.percentile(to_surface, 95) < 0.3
+    gap = np.linalg.norm(second_vertices - first.vertices_mm, axis=1)
+    assert np.median(gap) < 0.25 and np.percentile(gap, 95) < 0.8
+
+
+def test_a_rotated_cm_scaled_copy_of_a_synthetic_scan_fits_to_the_same_parameters(model, tmp_path):
+    """A defective synthetic PPM scan (one true parameter set, 0.2 mm noise, holes, outliers): the two fits
+    agree in their vertices (median 0.25 / p95 0.8 mm), the parent pose (0.3 mm, 1 deg) and every other
+    parameter (5 % of its range; measured 0.011 / 0.10 mm, 0.01 deg, 1.4 %)."""
+    rng = np.random.default_rng(5)
+    scan = add_scan_defects(model.mesh(random_parameters(rng, 0.5)), rng)
+    first, second, second_vertices, to_first = _fit_in_head_frame_and_posed_in_cm(model, scan, tmp_path)
     gap = np.linalg.norm(second_vertices - first.vertices_mm, axis=1)
     assert np.median(gap) < 0.25 and np.percentile(gap, 95) < 0.8
     frame_shift = np.linalg.norm(to_first[:3, 3]) + np.rad2deg(np.arccos(np.clip((np.trace(to_first[:3, :3]) - 1) / 2, -1, 1)))

@@ -18,6 +18,13 @@ of Blender's evaluation (about 2 ms per parameter). Stages follow the manual pro
 bone (global pose and size), then all bones (convex structures), then the shape keys (concave
 structures), then everything together until the cost stops falling. Bounds are kept by an active
 set (a parameter at a bound that the step pushes outward is held there) and clipping.
+
+The cost has many minima a few per cent apart (144 parameters, several of which trade off against each
+other on a real ear), and which one a large Gauss-Newton step lands in depends on floating-point noise:
+the same crop fitted in two poses, or on two CPUs, ended 0.25 mm apart. So the staged fit is followed by
+`restarts` rounds of basin hopping: the best parameters so far, all but the parent bone's nudged by a
+seeded normal spread of `restart_spread` range units, are fitted again with everything free, and the
+lowest cost wins. The nudges are the same in every pose (they act on the parent-relative parameters).
 """
 from __future__ import annotations
 
@@ -56,11 +63,16 @@ class AlignSettings:
     start_angles_deg: tuple[float, ...] = (0.0, 15.0, -15.0)
     stages: tuple[tuple[str, int], ...] = (("parent", 10), ("bones", 12), ("shape_keys", 8), ("all", 20))
     relative_tolerance: float = 2e-3
+    restarts: int = 4                   # basin-hopping rounds after the staged fit (0: none)
+    restart_spread: float = 0.05        # their nudge: standard deviation in range units, parent bone excluded
     seed: int = 0
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.fold_cosine < 1.0:  # the barrier must start before a face folds (cos 0)
             raise ValueError(f"fold_cosine must be in [0, 1), got {self.fold_cosine}")
+        if self.restarts < 0 or self.restart_spread < 0.0:
+            raise ValueError(f"restarts and restart_spread must not be negative, got {self.restarts}, "
+                             f"{self.restart_spread}")
 
 
 @dataclasses.dataclass
@@ -171,6 +183,10 @@ class _Problem:
         dcos_dv = np.stack([-(d1 + d2), d1, d2], axis=1)
         return turned, self.settings.fold_cosine - c, dcos_dv
 
+    def total_cost(self, params: np.ndarray) -> float:
+        """The objective at `params`: residual terms, fold barrier and prior."""
+        return self.residuals(self.model.evaluate(PinnaParameters(params)))[0] + self.prior(params)
+
     def prior(self, params: np.ndarray) -> float:
         u = (params - self.default) / self.scale
         return float(self.settings.prior_weight * (u * u).sum())
@@ -242,6 +258,25 @@ def _gauss_newton_stage(problem: _Problem, params: np.ndarray, active: np.ndarra
     return params
 
 
+def _basin_hopping(problem: _Problem, params: np.ndarray, iterations: int, history: list[dict]) -> np.ndarray:
+    """`settings.restarts` refits with everything free from the best parameters so far, nudged by a seeded
+    normal spread (range units) on all but the parent bone; returns the lowest-cost parameters."""
+    s = problem.settings
+    rng = np.random.default_rng(s.seed + 1)
+    nudged = ~_stage_mask("parent")
+    everything = _stage_mask("all")
+    best, best_cost = params, problem.total_cost(params)
+    for restart in range(s.restarts):
+        start = best + rng.normal(0.0, s.restart_spread, len(best)) * nudged * problem.scale
+        start = np.clip(start, problem.lower, problem.upper)
+        candidate = _gauss_newton_stage(problem, start, everything, iterations, history, f"restart {restart + 1}")
+        cost = problem.total_cost(candidate)
+        log.info("restart %d: cost %.4f (best so far %.4f)", restart + 1, cost, best_cost)
+        if cost < best_cost:
+            best, best_cost = candidate, cost
+    return best
+
+
 def _start_rotations(angles_deg: tuple[float, ...]) -> list[np.ndarray]:
     starts = [np.eye(3)]
     for angle in angles_deg:
@@ -292,6 +327,8 @@ def align(model: PinnaModel, target: Target, settings: AlignSettings | None = No
     history: list[dict] = []
     for stage, iterations in settings.stages:
         vector = _gauss_newton_stage(problem, vector, _stage_mask(stage), iterations, history, stage)
+    if settings.stages:
+        vector = _basin_hopping(problem, vector, settings.stages[-1][1], history)
     final = PinnaParameters(vector)
     vertices = model.evaluate(final)
     folded = len(model.folded_faces(vertices))

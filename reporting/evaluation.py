@@ -367,8 +367,26 @@ def _regions_html(rows: list[dict], regions: list[dict] | None) -> list[str]:
             "</details>"]
 
 
+def flat_settings(mapping: dict, prefix: str = "") -> list[tuple[str, object]]:
+    """A nested config mapping as (dotted key, value) pairs, e.g. [("hrtf.step_store", "/x/steps")]."""
+    pairs = []
+    for key, value in mapping.items():
+        name = f"{prefix}{key}"
+        pairs.extend(flat_settings(value, f"{name}.") if isinstance(value, dict) else [(name, value)])
+    return pairs
+
+
+def _outside_note(outside_settings: list[str] | None) -> str:
+    """What configfiles from outside the repository set (a clone lacks them), one sentence; empty if none."""
+    if not outside_settings:
+        return ""
+    return ("Also given, from outside the repository (a clone has the repository's values instead): "
+            + "; ".join(f"`{entry}`" for entry in outside_settings) + ".")
+
+
 def write_html(path: str | os.PathLike, rows: list[dict], figure6_path: Path, figure7_path: Path,
-               frequency_note: str, configfiles: list[str], regions: list[dict] | None = None) -> Path:
+               frequency_note: str, configfiles: list[str], regions: list[dict] | None = None,
+               outside_settings: list[str] | None = None) -> Path:
     """The evaluation's self-contained HTML page (figures embedded)."""
     from .subject import STYLE, _image  # noqa: PLC0415
 
@@ -385,19 +403,23 @@ def write_html(path: str | os.PathLike, rows: list[dict], figure6_path: Path, fi
              "<h2>Figure 6: scan to pinna distances</h2>", _image(figure6_path),
              *_regions_html(rows, regions),
              "<h2>Summary</h2>", _table_html(rows, COLUMNS),
-             f"<p>Configuration: {html.escape(' '.join(configfiles) or 'config/config.yaml')}</p></body></html>"]
+             f"<p>Configuration: {html.escape(' '.join(configfiles) or 'config/config.yaml')}. "
+             f"{html.escape(_outside_note(outside_settings))}</p></body></html>"]
     return write_text_atomic(path, "\n".join(parts) + "\n")
 
 
 def write_readme(path: str | os.PathLike, rows: list[dict], frequency_note: str, configfiles: list[str],
-                 wall_clock_hours: float, regions: list[dict] | None = None) -> Path:
+                 wall_clock_hours: float, regions: list[dict] | None = None,
+                 outside_settings: list[str] | None = None) -> Path:
     """The evaluation folder's README: what was run, by which command, at what cost, and the numbers."""
     command = "bash scripts/run.sh" + "".join(f" --configfile {c}" for c in configfiles)
     cpu = sum(r.get("solve_cpu_hours") or 0.0 for r in rows)
+    outside = _outside_note(outside_settings)
+    outside = f"{outside}\n" if outside else ""
     text = f"""# Evaluation: PPM heads vs reference HRTFs
 
 Made by `{command}` (Snakemake; rules/evaluation.smk). Every number below is in `summary.csv`.
-
+{outside}
 - Conditions: {'; '.join(f'`{c}` = {t}' for c, t in CONDITION_LABELS.items())}.
 - Solved: the left ear of each condition's head (NumCalc, {frequency_note}) on the reference SOFA's directions;
   the right ear is the reference's (rebuilt at the same frequencies). S is calibrated per subject so that the

@@ -3,6 +3,7 @@ import os
 from pathlib import Path
 from types import SimpleNamespace
 
+import yaml
 from snakemake.utils import validate
 
 validate(config, "../config/schema.yaml")
@@ -84,6 +85,7 @@ def template_params():
 
 HRTF_VARIANTS = ("reference", "original", "ppm", "own_pinna", "default_ppm")
 CONTROLS = ("own_pinna", "default_ppm")
+from reporting.evaluation import flat_settings
 from reporting.solve_plan import BUILT_HEADS  # ppm and the controls: heads kept in the step store beside their steps
 
 
@@ -310,10 +312,15 @@ def localisation_inputs(wildcards) -> dict:
 
 
 EVALUATION_FOLDER = config["evaluation"]["folder"]
-#: How the evaluation was configured, for its README (the configfiles given on the command line, relative to the
-#: working directory where they lie in it: Snakemake keeps them absolute).
-EVALUATION_CONFIGFILES = [os.path.relpath(path) if Path(path).resolve().is_relative_to(Path.cwd().resolve()) else str(path)
-                          for path in workflow.overwrite_configfiles]
+#: How the evaluation was configured, for its README: the configfiles given on the command line that lie in the
+#: working directory (relative; Snakemake keeps them absolute), and what each one outside it set (a clone does not
+#: have such a file, so its settings are spelled out: "path: key = value, ...").
+EVALUATION_CONFIGFILES = [os.path.relpath(path) for path in workflow.overwrite_configfiles
+                          if Path(path).resolve().is_relative_to(Path.cwd().resolve())]
+EVALUATION_OUTSIDE_SETTINGS = [f"{path}: " + ", ".join(f"{key} = {value}" for key, value in
+                                                        flat_settings(yaml.safe_load(Path(path).read_text()) or {}))
+                               for path in workflow.overwrite_configfiles
+                               if not Path(path).resolve().is_relative_to(Path.cwd().resolve())]
 
 
 def evaluation_report_inputs(wildcards) -> dict:

@@ -46,6 +46,7 @@ if EVALUATION_FOLDER:
             conditions={s: evaluation_conditions(s) for s in SUBJECTS},
             store=config["hrtf"]["step_store"],
             configfiles=EVALUATION_CONFIGFILES,
+            outside_settings=EVALUATION_OUTSIDE_SETTINGS,
         threads: 1
         resources:
             mem_mb=measured_mem_mb("evaluation_report"),

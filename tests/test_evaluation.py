@@ -179,6 +179,16 @@ def test_figures_page_and_readme_of_an_evaluation(tmp_path, sonicom):
     assert "| cymba conchae | 1.200 |" in readme and "- every goal met" in readme  # S1 meets its goals
     assert "Made by `bash scripts/run.sh --configfile config/paper_sonicom.yaml`" in readme
     assert "| S1 | ppm | 9.000 | 31.000 | 1.000 | 1.000 | 0.500 |" in readme and "4.10 CPU hours" in readme
+    # a configfile from outside the repository is not in the command (a clone lacks it); its settings are spelled out
+    from reporting.evaluation import flat_settings  # noqa: PLC0415
+
+    assert flat_settings({"hrtf": {"step_store": "/x/steps", "ears": "left"}, "seed": 1}) == [
+        ("hrtf.step_store", "/x/steps"), ("hrtf.ears", "left"), ("seed", 1)]
+    write_readme(tmp_path / "README.md", rows, "40 frequencies", ["config/paper_sonicom.yaml"], 3.5, regions,
+                 ["/tmp/store.yaml: hrtf.step_store = /x/steps"])
+    readme = (tmp_path / "README.md").read_text()
+    assert "Made by `bash scripts/run.sh --configfile config/paper_sonicom.yaml`" in readme
+    assert "outside the repository (a clone has the repository's values instead): `/tmp/store.yaml: hrtf.step_store" in readme
 
 
 def test_where_a_missed_goal_comes_from_names_the_farthest_regions():

@@ -11,8 +11,8 @@ configure_logging(snakemake)  # noqa: F821
 
 from mesh2hrtf_io.frequency_sets import describe_set  # noqa: E402
 from reporting.cost import subjects_timings  # noqa: E402
-from reporting.evaluation import (copy_sofa, evaluation_rows, figure6, figure7, region_rows, write_html,  # noqa: E402
-                                  write_readme, write_regions_csv, write_summary_csv)
+from reporting.evaluation import (copy_sofa, evaluation_rows, figure6, figure7, read_summary_csv,  # noqa: E402
+                                  region_rows, write_html, write_readme, write_regions_csv, write_summary_csv)
 
 inputs, out, params = snakemake.input, snakemake.output, snakemake.params  # noqa: F821
 subjects, conditions = list(params.subjects), dict(params.conditions)
@@ -24,13 +24,15 @@ rows = evaluation_rows("results", subjects, conditions, heads, steps, params.sto
 frequencies = json.loads(Path(inputs[f"{subjects[0]}_localisation"]).read_text())["frequency_set"]["frequencies_hz"]
 frequency_note = describe_set(frequencies)
 write_summary_csv(out.summary, rows)
+rows = read_summary_csv(out.summary)  # the figures and texts show the CSV's rounded numbers, not others
 regions = region_rows("results", subjects, conditions, {s: inputs[f"{s}_landmarks"] for s in subjects})
 write_regions_csv(out.regions, regions)
 copy_sofa({(s, c): inputs[f"{s}_{c}_hrtf"] for s, c in pairs}, out.sofa)
 figure7(rows, out.figure7)
 figure6(Path("results"), subjects, conditions, out.figure6)
 configfiles = list(params.configfiles)
-write_html(out.html, rows, Path(out.figure6), Path(out.figure7), frequency_note, configfiles, regions)
+outside = list(params.outside_settings)
+write_html(out.html, rows, Path(out.figure6), Path(out.figure7), frequency_note, configfiles, regions, outside)
 timings = subjects_timings("benchmarks/timings", subjects)
 wall_clock_h = sum(t.seconds for jobs in timings.values() for t in jobs) / 3600.0
-write_readme(out.readme, rows, frequency_note, configfiles, wall_clock_h, regions)
+write_readme(out.readme, rows, frequency_note, configfiles, wall_clock_h, regions, outside)

@@ -1,0 +1,79 @@
+"""Where in frequency each committed evaluation condition's left-ear DTFs leave the dataset's reference.
+
+    .venv/bin/python benchmarks/condition_dtf_gap.py [--evaluation evaluation/sonicom]
+
+For every subject and solved condition in ``<evaluation>/summary.csv``, the committed left-ear HRTFs
+(``sofa/<subject>_<condition>_left_HRTF.sofa``, solved at the evaluation frequency set) are compared with the
+subject's reference HRIRs (``../shared/data/sonicom/<subject>/hrir_mesh2hrtf_48k.sofa``, left ear) sampled
+exactly at the same frequencies (DFT of the impulse responses). DTF here: per frequency, the level in dB
+with its mean over the 793 directions removed. Printed per frequency: the median and 95th percentile of
+|ΔDTF| over the directions (dB), and the median over baumgartner2014's band (0.7-18 kHz).
+Reads committed files only (seconds). Last line (JSON): per subject and condition the frequencies (Hz), the
+per-frequency medians and p95 (dB) and the band median (dB).
+"""
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+SONICOM = ROOT.parent / "shared" / "data" / "sonicom"
+BAND_HZ = (700.0, 18000.0)  # baumgartner2014's default analysis band
+
+
+def dtf_levels_db(spectra: np.ndarray) -> np.ndarray:
+    """(directions, K) complex spectra -> level (dB) minus its mean over the directions, per frequency."""
+    level = 20.0 * np.log10(np.abs(spectra) + 1e-30)
+    return level - level.mean(axis=0, keepdims=True)
+
+
+def left_ear_gap(subject: str, sofa_path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """Frequencies (Hz) of the solved set and |ΔDTF| (dB), (directions, K), against the reference's left ear."""
+    import sofar
+
+    from mesh2hrtf_io.sparse_hrtf import sample_spectra
+
+    solved = sofar.read_sofa(str(sofa_path), verify=False)
+    reference = sofar.read_sofa(str(SONICOM / subject / "hrir_mesh2hrtf_48k.sofa"), verify=False)
+    if not np.allclose(solved.SourcePosition[:, :2], reference.SourcePosition[:, :2], atol=1e-3):
+        raise SystemExit(f"{sofa_path}: its directions are not the reference's ({subject})")
+    frequencies = np.asarray(solved.N, dtype=np.float64)
+    spectra = solved.Data_Real[:, 0, :] + 1j * solved.Data_Imag[:, 0, :]
+    rate = float(np.squeeze(reference.Data_SamplingRate))
+    exact = sample_spectra(reference.Data_IR[:, 0, :], rate, frequencies)
+    return frequencies, np.abs(dtf_levels_db(spectra) - dtf_levels_db(exact))
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--evaluation", type=Path, default=ROOT / "evaluation" / "sonicom")
+    args = parser.parse_args()
+    rows = list(csv.DictReader((args.evaluation / "summary.csv").open()))
+    figures = {}
+    for row in rows:
+        subject, condition = row["subject"], row["condition"]
+        if condition == "reference":
+            continue
+        frequencies, gap = left_ear_gap(subject, args.evaluation / "sofa" / f"{subject}_{condition}_left_HRTF.sofa")
+        median, p95 = np.median(gap, axis=0), np.percentile(gap, 95, axis=0)
+        band = (frequencies >= BAND_HZ[0]) & (frequencies <= BAND_HZ[1])
+        band_median = float(np.median(gap[:, band]))
+        print(f"{subject} {condition}: |ΔDTF| vs the reference, median (p95) over 793 directions, dB; "
+              f"over 0.7-18 kHz {band_median:.2f} dB")
+        for f, m, p in zip(frequencies, median, p95):
+            print(f"  {f / 1000:6.2f} kHz  {m:5.2f}  ({p:5.2f})")
+        figures[f"{subject}_{condition}"] = {"frequencies_hz": [round(float(f), 1) for f in frequencies],
+                                             "median_db": [round(float(m), 3) for m in median],
+                                             "p95_db": [round(float(p), 3) for p in p95],
+                                             "band_median_db": round(band_median, 3)}
+    print(json.dumps(figures))
+
+
+if __name__ == "__main__":
+    main()

@@ -315,12 +315,11 @@ EVALUATION_FOLDER = config["evaluation"]["folder"]
 #: How the evaluation was configured, for its README: the configfiles given on the command line that lie in the
 #: working directory (relative; Snakemake keeps them absolute), and what each one outside it set (a clone does not
 #: have such a file, so its settings are spelled out: "path: key = value, ...").
-EVALUATION_CONFIGFILES = [os.path.relpath(path) for path in workflow.overwrite_configfiles
-                          if Path(path).resolve().is_relative_to(Path.cwd().resolve())]
+_INSIDE = {path: Path(path).resolve().is_relative_to(Path.cwd().resolve()) for path in workflow.overwrite_configfiles}
+EVALUATION_CONFIGFILES = [os.path.relpath(path) for path, inside in _INSIDE.items() if inside]
 EVALUATION_OUTSIDE_SETTINGS = [f"{path}: " + ", ".join(f"{key} = {value}" for key, value in
                                                         flat_settings(yaml.safe_load(Path(path).read_text()) or {}))
-                               for path in workflow.overwrite_configfiles
-                               if not Path(path).resolve().is_relative_to(Path.cwd().resolve())]
+                               for path, inside in _INSIDE.items() if not inside]
 
 
 def evaluation_report_inputs(wildcards) -> dict:

@@ -12,9 +12,13 @@ from pathlib import Path
 
 import numpy as np
 
+from mesh2hrtf_io.constants import HRIR_LEAD_S
+
 from .errors import AmtBridgeError
 
-PRE_DELAY_S = 0.001  # HRTF -> HRIR: responses are shifted by this delay so that leads stay causal
+# HRTF -> HRIR: responses are delayed by the lead the pipeline writes its HRIRs with (mesh2hrtf_io), so that an
+# HRTF file read here gives the HRIRs written beside it.
+PRE_DELAY_S = HRIR_LEAD_S
 
 
 @dataclasses.dataclass(frozen=True)

@@ -5,8 +5,8 @@ pressures divided by the free-field pressure of a point source at the origin wit
 velocity (at the smallest grid radius), in NumCalc's e^{-iωt} convention as Mesh2HRTF stores them;
 and ``HRIR_<grid>.sofa`` (SimpleFreeFieldHRIR / GeneralFIR): when the frequencies are Δf, 2Δf, ...,
 f_max, exactly at 2·f_max with a 0 Hz bin of 1, conjugated to the usual e^{+iωt} DFT convention and
-shifted by 30 cm of travel time to be causal; for any other (sparse) set, rebuilt at a chosen rate and
-length by :func:`mesh2hrtf_io.sparse_hrtf.rebuild_hrirs` with the same 30 cm shift. Each file says in
+delayed by ``constants.HRIR_LEAD_S`` (30 cm of travel) to be causal; for any other (sparse) set, rebuilt at a chosen
+rate and length by :func:`mesh2hrtf_io.sparse_hrtf.rebuild_hrirs` with the same delay. Each file says in
 its GLOBAL_Comment how it was made. Files are verified by sofar and written atomically.
 """
 from __future__ import annotations
@@ -18,6 +18,7 @@ import numpy as np
 
 from ppm.atomic import atomic_path
 
+from .constants import HRIR_LEAD_S
 from .errors import Mesh2HrtfIoError
 from .frequency_sets import describe_set, is_linear_grid
 from .project_reader import Project, read_project
@@ -25,7 +26,6 @@ from .results import missing_steps, read_eval_grid_pressure
 from .sparse_hrtf import METHOD_NOTE, rebuild_hrirs
 
 APPLICATION = "ppm-hrtf mesh2hrtf_io"
-CAUSAL_SHIFT_M = 0.30
 HRIR_RATE_HZ, HRIR_SAMPLES = 48000.0, 320  # HRIRs rebuilt from a sparse set: the SONICOM references' own
 
 
@@ -64,7 +64,7 @@ def referenced_pressure(project: Project) -> np.ndarray:
     return pressure
 
 
-def hrirs_from_hrtfs(hrtf: np.ndarray, frequencies_hz: np.ndarray, speed_of_sound_m_s: float) -> tuple[np.ndarray, float]:
+def hrirs_from_hrtfs(hrtf: np.ndarray, frequencies_hz: np.ndarray) -> tuple[np.ndarray, float]:
     """Impulse responses (..., 2K samples) and sampling rate 2·f_K from referenced HRTFs (e^{-iωt}) on Δf, ..., KΔf."""
     f = np.asarray(frequencies_hz, dtype=np.float64)
     if f.size < 2 or f[0] <= 0 or not np.allclose(f, f[0] * np.arange(1, f.size + 1), atol=1e-6 * f[0]):
@@ -73,16 +73,16 @@ def hrirs_from_hrtfs(hrtf: np.ndarray, frequencies_hz: np.ndarray, speed_of_soun
     spectrum[..., -1] = np.abs(spectrum[..., -1])
     sampling_rate = 2.0 * float(f[-1])
     hrir = np.fft.irfft(np.conj(spectrum), axis=-1)
-    shift = int(round(CAUSAL_SHIFT_M / speed_of_sound_m_s * sampling_rate))
+    shift = int(round(HRIR_LEAD_S * sampling_rate))
     return np.roll(hrir, shift, axis=-1), sampling_rate
 
 
-def rebuilt_hrirs(hrtf: np.ndarray, frequencies_hz: np.ndarray, speed_of_sound_m_s: float,
-                  sampling_rate_hz: float, n_samples: int, source: str) -> np.ndarray:
+def rebuilt_hrirs(hrtf: np.ndarray, frequencies_hz: np.ndarray, sampling_rate_hz: float, n_samples: int,
+                  source: str) -> np.ndarray:
     """Impulse responses (..., n_samples) rebuilt from referenced HRTFs (e^{-iωt}) at a sparse set, shifted
-    by 30 cm of travel time like the exact ones."""
+    by ``HRIR_LEAD_S`` like the exact ones."""
     return rebuild_hrirs(np.conj(hrtf), frequencies_hz, sampling_rate_hz, n_samples,
-                         delay_shift_s=CAUSAL_SHIFT_M / speed_of_sound_m_s, source=source)
+                         delay_shift_s=HRIR_LEAD_S, source=source)
 
 
 def _receivers(project: Project) -> np.ndarray:
@@ -145,15 +145,15 @@ def collect_sofa(folder: str | os.PathLike, output_folder: str | os.PathLike | N
             if not project.parameters.get("reference", True):
                 raise Mesh2HrtfIoError("HRIRs need referenced HRTFs (parameters.json: reference true)")
             if is_linear_grid(project.frequencies_hz):
-                impulse, rate = hrirs_from_hrtfs(block, project.frequencies_hz, project.speed_of_sound_m_s)
+                impulse, rate = hrirs_from_hrtfs(block, project.frequencies_hz)
                 how = f"inverse DFT of {describe_set(project.frequencies_hz)}, 0 Hz = 1"
             else:
                 rate = float(hrir_sampling_rate_hz)
-                impulse = rebuilt_hrirs(block, project.frequencies_hz, project.speed_of_sound_m_s, rate, hrir_samples,
+                impulse = rebuilt_hrirs(block, project.frequencies_hz, rate, hrir_samples,
                                         f"{project.folder} grid {grid.name}")
                 how = f"rebuilt from {describe_set(project.frequencies_hz)}: {METHOD_NOTE}"
             sofa = _sofa("SimpleFreeFieldHRIR" if two_ears else "GeneralFIR", project, grid.points_m, title)
-            sofa.GLOBAL_Comment += f"; HRIRs: {how}; shifted by {CAUSAL_SHIFT_M * 100:g} cm of travel time"
+            sofa.GLOBAL_Comment += f"; HRIRs: {how}; delayed by {HRIR_LEAD_S * 1000:.4f} ms"
             sofa.Data_IR, sofa.Data_SamplingRate = impulse, rate
             sofa.Data_Delay = np.zeros((1, len(project.sources)))
             written.append(_write(sofa, output / f"HRIR_{grid.name}.sofa"))

@@ -140,6 +140,30 @@ def test_the_committed_sonicom_evaluation_parses_and_its_readme_follows_the_summ
     assert re.search(r"Made by `bash scripts/run.sh --configfile \S+`", readme)
 
 
+def test_qe_and_pe_recomputed_from_the_committed_sofa_files_are_the_summary(sonicom):
+    """Every solved condition's committed left-ear HRTFs, completed with the reference's right ear and heard with
+    the reference (rebuilt at the same frequencies) as template at the calibrated S, give summary.csv's QE, PE
+    and S again: the committed files are the ones the numbers came from."""
+    import sofar
+    import yaml
+
+    from amt_bridge.evaluation import compare_conditions
+
+    settings = yaml.safe_load((ROOT / "config" / "config.yaml").read_text())["localisation"]
+    rows = read_summary_csv(COMMITTED / "summary.csv")
+    for subject in sorted({r["subject"] for r in rows}):
+        mine = {r["condition"]: r for r in rows if r["subject"] == subject and r["condition"] != "reference"}
+        files = {condition: COMMITTED / "sofa" / f"{subject}_{condition}_left_HRTF.sofa" for condition in mine}
+        frequencies = np.asarray(sofar.read_sofa(str(next(iter(files.values()))), verify=False).N)
+        sensitivity, predictions = compare_conditions(sonicom / subject / settings["reference_sofa"], files,
+                                                      settings["calibration_qe_percent"],
+                                                      settings["lateral_angles_deg"], frequencies, "left")
+        for condition, row in mine.items():
+            assert row["sensitivity_db"] == pytest.approx(sensitivity, abs=1e-3)
+            assert row["qe_percent"] == pytest.approx(predictions[condition].qe, abs=1e-3), (subject, condition)
+            assert row["pe_deg"] == pytest.approx(predictions[condition].pe, abs=1e-3), (subject, condition)
+
+
 def test_figures_page_and_readme_of_an_evaluation(tmp_path, sonicom):
     """Figure 6 (scan coloured by distance + histograms), Figure 7 (QE/PE bars), the HTML page and the README
     from rows and per-point distances; the README's table holds the rows' numbers and the goals' verdicts."""

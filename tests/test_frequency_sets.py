@@ -13,11 +13,12 @@ from amt_bridge import read_hrtf_set
 from amt_bridge.hrtf_set import resampled_at
 from amt_bridge.model import LocalisationModel
 from mesh2hrtf_io import Mesh2HrtfIoError, sphere_grid, write_project
+from mesh2hrtf_io.constants import HRIR_LEAD_S
 from mesh2hrtf_io.frequency_sets import (check_frequency_set, describe_set, frequencies_from_spec, is_linear_grid,
                                          presets)
 from mesh2hrtf_io.project_reader import read_project
 from mesh2hrtf_io.results import write_eval_grid_pressure
-from mesh2hrtf_io.sofa_out import CAUSAL_SHIFT_M, collect_sofa
+from mesh2hrtf_io.sofa_out import collect_sofa
 from mesh2hrtf_io.sparse_hrtf import low_frequency_delay, rebuild_hrirs
 from stitching.ear_canal import ear_canal_elements
 
@@ -189,10 +190,11 @@ def test_a_sparse_project_collects_to_verified_sofa_with_rebuilt_hrirs(tmp_path)
     assert hrir.Data_SamplingRate == RATE and hrir.Data_IR.shape == (len(grid.points_m), 2, N)
     assert "rebuilt from 40 frequencies" in hrir.GLOBAL_Comment and "PCHIP" in hrir.GLOBAL_Comment
     peaks = np.argmax(np.abs(hrir.Data_IR), axis=-1) / RATE
-    expected = np.stack([delays["left"], delays["right"]], axis=-1) + CAUSAL_SHIFT_M / 343.0
+    expected = np.stack([delays["left"], delays["right"]], axis=-1) + HRIR_LEAD_S
     assert np.abs(peaks - expected).max() < 2.5 / RATE
-    as_read = read_hrtf_set(files[0])  # b2014 reads a sparse HRTF file by the same rebuild
+    as_read = read_hrtf_set(files[0])  # b2014 reads a sparse HRTF file by the same rebuild: the very HRIRs
     assert as_read.sampling_rate_hz == RATE and as_read.irs.shape[-1] == N
+    np.testing.assert_allclose(as_read.irs, hrir.Data_IR, rtol=0, atol=1e-12 * np.abs(hrir.Data_IR).max())
 
 
 def test_cli_exports_a_preset_and_the_cost_counts_its_steps(tmp_path, capsys):

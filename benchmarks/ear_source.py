@@ -1,16 +1,20 @@
 """Where the reciprocal ear source sits, and how far that moves the solved DTFs from the dataset's reference.
 
-    .venv/bin/python benchmarks/ear_source.py [--subject P143] [--frequencies 9000 14400] [--work DIR]
+    .venv/bin/python benchmarks/ear_source.py [--subject P143] [--frequencies 9000 14400] [--speed-of-sound 346.18]
+        [--rules ray_exit canal_floor assign_materials] [--work DIR]
 
 The subject's unchanged SONICOM head (``head_graded_left.ply``, the ground truth) is exported twice on the
 reference SOFA's 793 directions, left ear only, at frequencies of the reference's own 150 Hz grid (so the
 reference HRTF is exact there): once with the source faces at the exit of the ray from the interaural centre
 along +y (the former rule), once with the source in the middle of the canal floor the surface leads down into
-from there (``stitching.ear_canal``, the rule now). NumCalc solves both, one step at a time; each solved DTF
+from there (``stitching.ear_canal``, the rule now), and with the rule of Mesh2HRTF's AssignMaterials operator, which
+marks the dataset's own Blender projects (the face nearest the +y axis among the innermost faces within 2 mm of it).
+NumCalc solves each, one step at a time; each solved DTF
 (dB, the mean over directions removed) is compared with the reference's (the HRIRs' exact DFT). Finished steps
 stay in ``--work``, so an interrupted run continues.
+``--speed-of-sound`` solves with another c than Mesh2HRTF's exporter default (the reference may have used another).
 Last line (JSON): per rule and frequency the median and 95th percentile of |ΔDTF| (dB) over the directions,
-the distance between the two sources (mm) and the seconds per step.
+the distance between the first two sources (mm) and the seconds per step.
 """
 from __future__ import annotations
 
@@ -36,6 +40,26 @@ def exit_faces(mesh, min_area_mm2: float = 4.0) -> np.ndarray:
     return faces_around(mesh, hit, left, min_area_mm2)
 
 
+def assign_materials_face(mesh, tolerance_mm: float = 2.0) -> np.ndarray:
+    """Mesh2HRTF's AssignMaterials rule for the left ear: among the faces whose centre lies within ``tolerance_mm``
+    of the y axis in x and in z at y > 0, those at most ``tolerance_mm`` beyond the smallest y; of these, the one
+    with the smallest |x| + |z|."""
+    centre = mesh.triangles_center
+    near = np.flatnonzero((centre[:, 1] > 0) & (np.abs(centre[:, 0]) < tolerance_mm)
+                          & (np.abs(centre[:, 2]) < tolerance_mm))
+    if near.size == 0:
+        raise SystemExit(f"no face within {tolerance_mm} mm of the +y axis")
+    inner = near[centre[near, 1] < centre[near, 1].min() + tolerance_mm]
+    return inner[[np.argmin(np.abs(centre[inner, 0]) + np.abs(centre[inner, 2]))]]
+
+
+def nearest_face(mesh, point_mm) -> np.ndarray:
+    """The face whose centre lies nearest ``point_mm`` (e.g. a source face read from another project)."""
+    if point_mm is None:
+        raise SystemExit("rule given_point needs --source-at X Y Z (mm)")
+    return np.array([np.argmin(np.linalg.norm(mesh.triangles_center - np.asarray(point_mm), axis=1))])
+
+
 def dtf_db(spectra: np.ndarray) -> np.ndarray:
     """Directional part (dB) of one frequency's responses over the directions."""
     level = 20.0 * np.log10(np.abs(spectra) + 1e-30)
@@ -46,6 +70,11 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--subject", default="P143")
     parser.add_argument("--frequencies", type=float, nargs="+", default=[9000.0, 14400.0])
+    parser.add_argument("--speed-of-sound", type=float, default=None, help="m/s (default: Mesh2HRTF's 346.18)")
+    parser.add_argument("--rules", nargs="+", default=["ray_exit", "canal_floor", "assign_materials"],
+                        help="ray_exit, canal_floor, assign_materials, given_point (needs --source-at)")
+    parser.add_argument("--source-at", type=float, nargs=3, metavar=("X", "Y", "Z"),
+                        help="rule given_point: the face whose centre is nearest this point (mm, head frame)")
     parser.add_argument("--numcalc", default="")
     parser.add_argument("--work", type=Path, default=ROOT / "results" / "benchmarks" / "ear_source")
     args = parser.parse_args()
@@ -53,6 +82,7 @@ def main() -> None:
     import sofar
     import trimesh
 
+    from mesh2hrtf_io.constants import SPEED_OF_SOUND_M_S
     from mesh2hrtf_io.grids import grid_from_sofa
     from mesh2hrtf_io.numcalc import find_numcalc, run_step
     from mesh2hrtf_io.project import write_project
@@ -67,17 +97,25 @@ def main() -> None:
     times = np.arange(impulse.shape[1]) / rate
     numcalc = find_numcalc(args.numcalc or None)
     grid = grid_from_sofa(folder / "hrir_mesh2hrtf_48k.sofa", name="Directions")
-    rules = {"ray_exit": exit_faces(head), "canal_floor": ear_canal_elements(head, "left")}
+    speed = args.speed_of_sound or SPEED_OF_SOUND_M_S
+    rule_of = {"ray_exit": exit_faces, "canal_floor": lambda mesh: ear_canal_elements(mesh, "left"),
+               "assign_materials": assign_materials_face,
+               "given_point": lambda mesh: nearest_face(mesh, args.source_at)}
+    rules = {name: rule_of[name](head) for name in args.rules}
     centres = {name: head.triangles_center[faces].mean(axis=0) for name, faces in rules.items()}
-    gap = float(np.linalg.norm(centres["ray_exit"] - centres["canal_floor"]))
-    print(f"{args.subject}: sources {gap:.1f} mm apart; ray exit at {np.round(centres['ray_exit'], 1)}, "
-          f"canal floor at {np.round(centres['canal_floor'], 1)} (mm)")
-    figures: dict = {"subject": args.subject, "source_gap_mm": round(gap, 2)}
+    for name, centre in centres.items():
+        print(f"{args.subject}: {name} source ({len(rules[name])} faces, "
+              f"{head.area_faces[rules[name]].sum():.2f} mm^2) at {np.round(centre, 1)} mm")
+    figures: dict = {"subject": args.subject, "speed_of_sound_m_s": speed}
+    if len(centres) > 1:
+        first, second = list(centres.values())[:2]
+        figures["source_gap_mm"] = round(float(np.linalg.norm(first - second)), 2)
+    folder_name = "_".join(f"{f:.0f}" for f in args.frequencies) + ("" if speed == SPEED_OF_SOUND_M_S else f"_c{speed:g}")
     for name, faces in rules.items():
-        project = args.work / args.subject / "_".join(f"{f:.0f}" for f in args.frequencies) / name
+        project = args.work / args.subject / folder_name / name
         if not (project / "parameters.json").is_file():
             write_project(project, head.vertices, head.faces, {"left": faces}, [grid], args.frequencies,
-                          source_type="Left ear", title=f"{args.subject}_{name}")
+                          source_type="Left ear", title=f"{args.subject}_{name}", speed_of_sound_m_s=speed)
         source = project / "NumCalc" / "source_1"
         for step, frequency in enumerate(args.frequencies, start=1):
             start = time.perf_counter()

@@ -15,6 +15,7 @@ from pathlib import Path
 from ppm.atomic import write_text_atomic
 from ppm.progress import Progress
 
+from .constants import SPEED_OF_SOUND_M_S
 from .frequency_sets import describe_set, frequencies_from_spec
 from .errors import Mesh2HrtfIoError
 from .grids import grid_from_sofa, sagittal_grid
@@ -48,7 +49,8 @@ def export_head_project(head_path: str | os.PathLike, project: str | os.PathLike
             else sagittal_grid(polar_step_deg=settings["polar_step_deg"]))
     layout = write_project(project, head.vertices, head.faces, ears, [grid],
                            frequencies, source_type=SOURCE_TYPES[settings["ears"]], title=title or head_path.parent.name,
-                           compute_hrirs=True, numcalc_cluster_size=settings.get("numcalc_cluster_size", "auto"))
+                           compute_hrirs=True, numcalc_cluster_size=settings.get("numcalc_cluster_size", "auto"),
+                           speed_of_sound_m_s=float(settings.get("speed_of_sound_m_s", SPEED_OF_SOUND_M_S)))
     log.info("exported %s: %d elements, ears %s, %s", project, layout.n_object_elements, layout.ear_ranges,
              describe_set(frequencies))
     if head_store:

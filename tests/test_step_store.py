@@ -102,3 +102,9 @@ def test_exporting_with_a_head_store_keeps_the_head_and_its_steps_restore_on_a_f
     export_head_project(stored_head(store), tmp_path / "fresh", settings, title="S1_ppm", head_store=store)
     assert project_fingerprint(tmp_path / "fresh", 1) == project_fingerprint(tmp_path / "first", 1)
     assert restore_step(tmp_path / "fresh", 1, 1, store)
+    # another speed of sound (config hrtf.speed_of_sound_m_s) is another solve: written, and never restored
+    export_head_project(stored_head(store), tmp_path / "c343", {**settings, "speed_of_sound_m_s": 343.18},
+                        title="S1_ppm", head_store=store)
+    assert read_project(tmp_path / "c343").speed_of_sound_m_s == 343.18
+    assert "\n343.18 1.1839e+00 " in (tmp_path / "c343" / "NumCalc" / "source_1" / "NC.inp").read_text()
+    assert not restore_step(tmp_path / "c343", 1, 1, store)

@@ -1,7 +1,7 @@
 """Where the reciprocal ear source sits, and how far that moves the solved DTFs from the dataset's reference.
 
     .venv/bin/python benchmarks/ear_source.py [--subject P143] [--frequencies 9000 14400] [--speed-of-sound 346.18]
-        [--rules ray_exit canal_floor assign_materials] [--work DIR]
+        [--rules ray_exit canal_floor assign_materials given_point] [--source-at X Y Z] [--canal-area 4] [--work DIR]
 
 The subject's unchanged SONICOM head (``head_graded_left.ply``, the ground truth) is exported twice on the
 reference SOFA's 793 directions, left ear only, at frequencies of the reference's own 150 Hz grid (so the
@@ -73,6 +73,8 @@ def main() -> None:
     parser.add_argument("--speed-of-sound", type=float, default=None, help="m/s (default: Mesh2HRTF's 346.18)")
     parser.add_argument("--rules", nargs="+", default=["ray_exit", "canal_floor", "assign_materials"],
                         help="ray_exit, canal_floor, assign_materials, given_point (needs --source-at)")
+    parser.add_argument("--canal-area", type=float, default=4.0,
+                        help="rule canal_floor: the source's area (mm^2; the pipeline's rule takes 4)")
     parser.add_argument("--source-at", type=float, nargs=3, metavar=("X", "Y", "Z"),
                         help="rule given_point: the face whose centre is nearest this point (mm, head frame)")
     parser.add_argument("--numcalc", default="")
@@ -98,7 +100,7 @@ def main() -> None:
     numcalc = find_numcalc(args.numcalc or None)
     grid = grid_from_sofa(folder / "hrir_mesh2hrtf_48k.sofa", name="Directions")
     speed = args.speed_of_sound or SPEED_OF_SOUND_M_S
-    rule_of = {"ray_exit": exit_faces, "canal_floor": lambda mesh: ear_canal_elements(mesh, "left"),
+    rule_of = {"ray_exit": exit_faces, "canal_floor": lambda mesh: ear_canal_elements(mesh, "left", args.canal_area),
                "assign_materials": assign_materials_face,
                "given_point": lambda mesh: nearest_face(mesh, args.source_at)}
     rules = {name: rule_of[name](head) for name in args.rules}
@@ -110,7 +112,8 @@ def main() -> None:
     if len(centres) > 1:
         first, second = list(centres.values())[:2]
         figures["source_gap_mm"] = round(float(np.linalg.norm(first - second)), 2)
-    folder_name = "_".join(f"{f:.0f}" for f in args.frequencies) + ("" if speed == SPEED_OF_SOUND_M_S else f"_c{speed:g}")
+    folder_name = ("_".join(f"{f:.0f}" for f in args.frequencies) + ("" if speed == SPEED_OF_SOUND_M_S else f"_c{speed:g}")
+                   + ("" if args.canal_area == 4.0 else f"_area{args.canal_area:g}"))
     for name, faces in rules.items():
         project = args.work / args.subject / folder_name / name
         if not (project / "parameters.json").is_file():

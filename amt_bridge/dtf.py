@@ -17,6 +17,13 @@ from .hrtf_set import HrirSet
 ATTENUATION_DB = 20.0  # SOFAhrtf2dtf scales DTFs down by 20 dB; a constant gain that the gradients cancel
 
 
+def directional_levels_db(spectra: np.ndarray) -> np.ndarray:
+    """Levels (dB) of complex spectra (directions, ...) minus their mean over the directions (axis 0): the DTF's
+    magnitude per frequency, for comparing two sets direction by direction (a per-frequency gain drops out)."""
+    level = 20.0 * np.log10(np.abs(spectra) + EPS)
+    return level - level.mean(axis=0, keepdims=True)
+
+
 def minimum_phase_spectrum(log_magnitude: np.ndarray) -> np.ndarray:
     """The minimum-phase spectrum exp(C + i·phase) of a full (two-sided, length N along the last axis)
     natural-log magnitude C, by folding its real cepstrum."""

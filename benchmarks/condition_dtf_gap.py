@@ -27,16 +27,11 @@ SONICOM = ROOT.parent / "shared" / "data" / "sonicom"
 BAND_HZ = (700.0, 18000.0)  # baumgartner2014's default analysis band
 
 
-def dtf_levels_db(spectra: np.ndarray) -> np.ndarray:
-    """(directions, K) complex spectra -> level (dB) minus its mean over the directions, per frequency."""
-    level = 20.0 * np.log10(np.abs(spectra) + 1e-30)
-    return level - level.mean(axis=0, keepdims=True)
-
-
 def left_ear_gap(subject: str, sofa_path: Path) -> tuple[np.ndarray, np.ndarray]:
     """Frequencies (Hz) of the solved set and |ΔDTF| (dB), (directions, K), against the reference's left ear."""
     import sofar
 
+    from amt_bridge.dtf import directional_levels_db
     from mesh2hrtf_io.sparse_hrtf import sample_spectra
 
     solved = sofar.read_sofa(str(sofa_path), verify=False)
@@ -47,7 +42,7 @@ def left_ear_gap(subject: str, sofa_path: Path) -> tuple[np.ndarray, np.ndarray]
     spectra = solved.Data_Real[:, 0, :] + 1j * solved.Data_Imag[:, 0, :]
     rate = float(np.squeeze(reference.Data_SamplingRate))
     exact = sample_spectra(reference.Data_IR[:, 0, :], rate, frequencies)
-    return frequencies, np.abs(dtf_levels_db(spectra) - dtf_levels_db(exact))
+    return frequencies, np.abs(directional_levels_db(spectra) - directional_levels_db(exact))
 
 
 def main() -> None:

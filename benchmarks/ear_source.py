@@ -60,12 +60,6 @@ def nearest_face(mesh, point_mm) -> np.ndarray:
     return np.array([np.argmin(np.linalg.norm(mesh.triangles_center - np.asarray(point_mm), axis=1))])
 
 
-def dtf_db(spectra: np.ndarray) -> np.ndarray:
-    """Directional part (dB) of one frequency's responses over the directions."""
-    level = 20.0 * np.log10(np.abs(spectra) + 1e-30)
-    return level - level.mean()
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--subject", default="P143")
@@ -84,6 +78,7 @@ def main() -> None:
     import sofar
     import trimesh
 
+    from amt_bridge.dtf import directional_levels_db
     from mesh2hrtf_io.constants import SPEED_OF_SOUND_M_S
     from mesh2hrtf_io.grids import grid_from_sofa
     from mesh2hrtf_io.numcalc import find_numcalc, run_step
@@ -125,8 +120,8 @@ def main() -> None:
             status = run_step(numcalc, source, step, len(grid.points_m))
             # a resumed step reports the seconds NumCalc took when it was solved
             seconds = sum(a.get("seconds", 0.0) for a in status.get("attempts", [])) or time.perf_counter() - start
-            solved = dtf_db(read_eval_grid_pressure(source, step))
-            truth = dtf_db(impulse @ np.exp(-2j * np.pi * frequency * times))
+            solved = directional_levels_db(read_eval_grid_pressure(source, step))
+            truth = directional_levels_db(impulse @ np.exp(-2j * np.pi * frequency * times))
             error = np.abs(solved - truth)
             key = f"{name}_{frequency:.0f}hz"
             figures[f"{key}_median_db"] = round(float(np.median(error)), 3)

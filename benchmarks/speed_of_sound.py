@@ -35,28 +35,23 @@ TUTORIAL_M_S = 343.18  # Mesh2HRTF 1.2.4's HRTF tutorial script
 SCAN_M_S = np.unique(np.r_[np.arange(336.0, 350.01, 0.5), TUTORIAL_M_S, 346.18])
 
 
-def dtf_levels_db(spectra: np.ndarray) -> np.ndarray:
-    """(directions, K) complex spectra -> level (dB) minus its mean over the directions, per frequency."""
-    level = 20.0 * np.log10(np.abs(spectra) + 1e-30)
-    return level - level.mean(axis=0, keepdims=True)
-
-
 def gap_by_speed(solved_sofa: Path, reference_sofa: Path) -> dict[float, dict[str, float]]:
     """RMS |ΔDTF| (dB) per band between the left ear solved at c0 and the reference, for each c of the scan."""
     import sofar
 
+    from amt_bridge.dtf import directional_levels_db
     from mesh2hrtf_io.constants import SPEED_OF_SOUND_M_S
     from mesh2hrtf_io.sparse_hrtf import sample_spectra
 
     solved = sofar.read_sofa(str(solved_sofa), verify=False)
     reference = sofar.read_sofa(str(reference_sofa), verify=False)
     frequencies = np.asarray(solved.N, dtype=np.float64)
-    levels = dtf_levels_db(solved.Data_Real[:, 0, :] + 1j * solved.Data_Imag[:, 0, :])
+    levels = directional_levels_db(solved.Data_Real[:, 0, :] + 1j * solved.Data_Imag[:, 0, :])
     rate = float(np.ravel(reference.Data_SamplingRate)[0])
     table = {}
     for c in SCAN_M_S:
         exact = sample_spectra(reference.Data_IR[:, 0, :], rate, frequencies * c / SPEED_OF_SOUND_M_S)
-        gap = levels - dtf_levels_db(exact)
+        gap = levels - directional_levels_db(exact)
         table[float(c)] = {band: float(np.sqrt(np.mean(gap[:, (frequencies >= lo) & (frequencies <= hi)] ** 2)))
                            for band, (lo, hi) in BANDS_HZ.items()}
     return table

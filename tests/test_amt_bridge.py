@@ -257,3 +257,16 @@ def test_a_one_ear_set_takes_the_other_ear_from_the_reference_direction_by_direc
                              azimuth=reference.azimuth_deg, elevation=reference.elevation_deg)
     with pytest.raises(AmtBridgeError, match="rebuild both alike"):
         read_one_ear_completed(short, "left", reference)
+
+
+def test_directional_levels_drop_a_per_frequency_gain_and_keep_what_differs_between_directions():
+    from amt_bridge.dtf import directional_levels_db
+
+    rng = np.random.default_rng(3)
+    spectra = rng.normal(size=(50, 7)) + 1j * rng.normal(size=(50, 7))
+    gained = spectra * (10.0 ** (rng.normal(size=7) / 20.0)) * np.exp(1j * rng.normal(size=7))
+    np.testing.assert_allclose(directional_levels_db(gained), directional_levels_db(spectra), atol=1e-9)
+    louder_first = spectra.copy()
+    louder_first[0] *= 2.0  # +6.02 dB in one direction moves it by 6.02 * (1 - 1/50) against the mean
+    np.testing.assert_allclose(directional_levels_db(louder_first)[0] - directional_levels_db(spectra)[0],
+                               20 * np.log10(2.0) * (1 - 1 / 50), atol=1e-9)

@@ -34,7 +34,7 @@ import numpy as np
 import trimesh
 
 from align_real import loo_template
-from ppm.align import align, prepare_target
+from ppm.align import AlignSettings, align, prepare_target
 from ppm.align.any_pose import PoseUncertainError, align_any_pose
 from ppm.align.defects import defective_scan, levels, random_pose
 from ppm.align.pose import apply_similarity
@@ -76,7 +76,8 @@ def nricp_fit(template: trimesh.Trimesh, scan: trimesh.Trimesh, steps) -> tuple[
     return nonrigid_register(moved, scan, steps), time.perf_counter() - start
 
 
-def fit_file(model: PinnaModel, mesh: trimesh.Trimesh, folder: Path, name: str, scan_pose: str):
+def fit_file(model: PinnaModel, mesh: trimesh.Trimesh, folder: Path, name: str, scan_pose: str,
+             settings: AlignSettings | None = None):
     """Write the scan to PLY and fit it through the workflow's path: (target in the chosen pose, result,
     seconds). With scan_pose 'any' the pose is found and, where the rigid search left alternatives, decided by
     the PPM fit (ppm.align.any_pose.align_any_pose)."""
@@ -85,9 +86,9 @@ def fit_file(model: PinnaModel, mesh: trimesh.Trimesh, folder: Path, name: str, 
     start = time.perf_counter()
     target = prepare_target(path, scan_pose=scan_pose)
     if scan_pose == "any":
-        result, target = align_any_pose(model, target)
+        result, target = align_any_pose(model, target, settings)
     else:
-        result = align(model, target)
+        result = align(model, target, settings)
     return target, result, time.perf_counter() - start
 
 
@@ -102,7 +103,11 @@ def main() -> None:
     parser.add_argument("--schedule", choices=sorted(SCHEDULES), default=None,
                         help="use this NRICP schedule instead of trying all at the hardest level (faster; the full run "
                              "picked to_0.007)")
+    parser.add_argument("--fold-weight", type=float, default=AlignSettings.fold_weight,
+                        help=f"the aligner's fold barrier weight (default {AlignSettings.fold_weight})")
     args = parser.parse_args()
+    settings = AlignSettings(fold_weight=args.fold_weight)
+    print(f"alignment settings: fold_weight = {args.fold_weight}")
     schedules = {args.schedule: SCHEDULES[args.schedule]} if args.schedule else SCHEDULES
 
     subjects = args.subjects or sorted(p.name for p in args.data_root.iterdir()
@@ -125,7 +130,8 @@ def main() -> None:
         keep[subject] = (template, truth)
         for level in grades:
             scan = defective_scan(clean, level, rng, posed=False)
-            target, result, seconds = fit_file(model, scan.mesh, work, f"{subject}_{level}", "project_frame")
+            target, result, seconds = fit_file(model, scan.mesh, work, f"{subject}_{level}", "project_frame",
+                                               settings)
             ppm = truth_distances(truth, result.vertices_mm, model.faces)
             surface = scan_surface_without_outliers(target)
             tried = schedules if level == hardest else {}
@@ -148,7 +154,8 @@ def main() -> None:
                 posed = apply_similarity(scan.mesh, truth_to_scan)
                 label = f"{subject} pose {index} ({unit}{', right ear' if mirrored else ''})"
                 try:
-                    posed_target, posed_result, seconds = fit_file(model, posed, work, f"{subject}_pose{index}", "any")
+                    posed_target, posed_result, seconds = fit_file(model, posed, work, f"{subject}_pose{index}", "any",
+                                                                   settings)
                 except PoseUncertainError as exc:
                     print(f"{label}: refused: {exc}", flush=True)
                     pose_results.append({"subject": subject, "success": False, "refused": str(exc)})

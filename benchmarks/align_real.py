@@ -74,6 +74,17 @@ def region_medians(template_dir: Path, vertices_mm: np.ndarray, points_mm: np.nd
             for row in region_table(label_points(points_mm, positions), distance_mm)}
 
 
+def signed_region_medians(template_dir: Path, vertices_mm: np.ndarray, faces: np.ndarray,
+                          points_mm: np.ndarray) -> dict[str, float]:
+    """Median signed distance (mm) per region of every scan point from its closest point on the fitted PPM, along
+    that face's outward normal: negative where the scan lies behind (inside) the fitted surface, e.g. a deeper
+    concha than the fit's."""
+    fitted = trimesh.Trimesh(vertices_mm, faces, process=False)
+    closest, _, face = trimesh.proximity.closest_point(fitted, points_mm)
+    signed = np.einsum("ij,ij->i", points_mm - closest, fitted.face_normals[face])
+    return region_medians(template_dir, vertices_mm, points_mm, signed)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--data-root", type=Path, default=ROOT.parent / "shared" / "data" / "sonicom")
@@ -84,9 +95,13 @@ def main() -> None:
                         help="ignore scan -> model pairs whose normals meet at a cosine below this (default: keep all)")
     parser.add_argument("--restarts", type=int, default=AlignSettings.restarts,
                         help=f"basin-hopping refits after the staged fit (default {AlignSettings.restarts}; 0: none)")
+    parser.add_argument("--fold-weight", type=float, default=AlignSettings.fold_weight,
+                        help=f"the fold barrier's weight (default {AlignSettings.fold_weight})")
     args = parser.parse_args()
-    settings = AlignSettings(normal_min_cosine=args.normal_min_cosine, restarts=args.restarts)
-    print(f"alignment settings: normal_min_cosine = {args.normal_min_cosine}, restarts = {args.restarts}")
+    settings = AlignSettings(normal_min_cosine=args.normal_min_cosine, restarts=args.restarts,
+                             fold_weight=args.fold_weight)
+    print(f"alignment settings: normal_min_cosine = {args.normal_min_cosine}, restarts = {args.restarts}, "
+          f"fold_weight = {args.fold_weight}")
 
     subjects = sorted(p.name for p in args.data_root.iterdir() if (p / "pinna_left_crop.ply").is_file())
     rows = {}
@@ -108,6 +123,10 @@ def main() -> None:
               f"{100 * ppm['share_under_1mm']:.1f} % < 1 mm, {result.seconds:.1f} s | NRICP median "
               f"{nricp['median_mm']:.3f} mm, p95 {nricp['p95_mm']:.3f} mm, {nricp_seconds:.1f} s", flush=True)
         print(f"{subject}: PPM median per region (mm): {regions}", flush=True)
+        signed = signed_region_medians(template_dir, result.vertices_mm, model.faces, target.points_mm)
+        rows[subject]["region_signed_median_mm"] = signed
+        print(f"{subject}: median signed distance per region (mm, < 0: the scan lies behind the fit): {signed}",
+              flush=True)
 
     model = PinnaModel.from_template()
     rng = np.random.default_rng(2026)

@@ -57,7 +57,9 @@ class AlignSettings:
     model_to_target_weight: float = 0.25
     prior_weight: float = 2e-3          # per parameter, in (range units)^2 against mm^2 of residual
     fold_cosine: float = 0.5            # a face whose normal turns more than 60° from the template's ...
-    fold_weight: float = 1.0            # ... costs fold_weight * (fold_cosine - cos(turn))^2 (barrier against folds)
+    fold_weight: float = 0.1            # ... costs fold_weight * (fold_cosine - cos(turn))^2 (barrier against folds;
+    #                                     1.0 held P143's cymba conchae 1.27 mm too shallow, 0.1 fits it to 0.55 mm
+    #                                     with no face folded: benchmarks/align_real.py --fold-weight)
     ring_exclusion_mm: float = 4.0      # template vertices this close to its outer ring are not pulled
     normal_min_cosine: float | None = None  # scan -> model pairs whose normals meet at a cosine below this are ignored
     start_angles_deg: tuple[float, ...] = (0.0, 15.0, -15.0)

@@ -192,3 +192,22 @@ def test_missing_or_crashing_numcalc_is_a_clear_error(tmp_path, monkeypatch):
     with pytest.raises(NumCalcError, match="step 1 failed \\(exit 139"):
         run_step(find_numcalc(crashing), source, 1, 42)
     assert not (step_folder(source, 1) / "status.json").exists()
+
+
+def test_a_solve_depends_on_frequency_over_speed_of_sound_only(tmp_path):
+    """A referenced HRTF solved at f with c equals the one solved at f * c' / c with c' (the Helmholtz problem and
+    the free-field reference depend on k = 2 pi f / c alone): benchmarks/speed_of_sound.py relabels committed
+    solves this way instead of solving them again."""
+    mesh = trimesh.creation.icosphere(subdivisions=2, radius=RADIUS_MM)
+    ears = {"left": ear_canal_elements(mesh, "left")}
+    grid = sphere_grid("Sphere", trimesh.creation.icosphere(subdivisions=1, radius=1.2).vertices)
+    spectra = {}
+    for name, speed, frequencies in (("c343", 343.0, [1000.0, 2000.0]),
+                                     ("c346", 346.18, [1000.0 * 346.18 / 343.0, 2000.0 * 346.18 / 343.0])):
+        write_project(tmp_path / name, mesh.vertices, mesh.faces, ears, [grid], frequencies, source_type="Left ear",
+                      speed_of_sound_m_s=speed, density_kg_m3=1.2, compute_hrirs=False)
+        solve_project_embedded(tmp_path / name)
+        hrtf = sofar.read_sofa(str(collect_sofa(tmp_path / name)[0]), verify=False)
+        spectra[name] = hrtf.Data_Real + 1j * hrtf.Data_Imag
+    np.testing.assert_allclose(spectra["c346"], spectra["c343"], rtol=1e-6, atol=1e-9)
+    assert np.abs(np.diff(20 * np.log10(np.abs(spectra["c343"])), axis=-1)).max() > 0.5  # the two steps differ

@@ -12,13 +12,11 @@ from pathlib import Path
 
 import numpy as np
 
+# HRTF -> HRIR: responses are delayed by the lead the pipeline writes its HRIRs with, so that an HRTF file read
+# here gives the HRIRs written beside it.
 from mesh2hrtf_io.constants import HRIR_LEAD_S
 
 from .errors import AmtBridgeError
-
-# HRTF -> HRIR: responses are delayed by the lead the pipeline writes its HRIRs with (mesh2hrtf_io), so that an
-# HRTF file read here gives the HRIRs written beside it.
-PRE_DELAY_S = HRIR_LEAD_S
 
 
 @dataclasses.dataclass(frozen=True)
@@ -70,7 +68,7 @@ def hrtf_to_hrir(spectra: np.ndarray, frequencies_hz: np.ndarray, source: str) -
     """Impulse responses from one-sided spectra (..., K) on the grid f_k = k Δf (k = 1..K or 0..K),
     as Mesh2HRTF writes them (without a 0 Hz bin, it is set to the magnitude of the lowest bin, phase 0).
     The highest frequency is taken as Nyquist, so the sampling rate is 2 f_K. Responses are shifted by
-    ``PRE_DELAY_S`` so that the head's lead (up to ~0.7 ms) does not wrap around. Spectra at any other
+    ``HRIR_LEAD_S`` so that the head's lead (up to ~0.7 ms) does not wrap around. Spectra at any other
     (sparse) set are rebuilt at 48 kHz by :func:`mesh2hrtf_io.sparse_hrtf.rebuild_hrirs`."""
     frequencies = np.asarray(frequencies_hz, dtype=np.float64).ravel()
     if frequencies.size < 8:
@@ -87,12 +85,12 @@ def hrtf_to_hrir(spectra: np.ndarray, frequencies_hz: np.ndarray, source: str) -
     n_samples = 2 * (full.shape[-1] - 1)
     sampling_rate = 2.0 * frequencies[-1]
     irs = np.fft.irfft(full, n=n_samples, axis=-1)
-    return np.roll(irs, int(round(PRE_DELAY_S * sampling_rate)), axis=-1), sampling_rate
+    return np.roll(irs, int(round(HRIR_LEAD_S * sampling_rate)), axis=-1), sampling_rate
 
 
 def _rebuilt_from_sparse_set(spectra: np.ndarray, frequencies: np.ndarray, dc, source: str) -> tuple[np.ndarray, float]:
     """HRIRs at 48 kHz (320 taps, or more for a set above 24 kHz) rebuilt from a sparse frequency set
-    (mesh2hrtf_io.sparse_hrtf), shifted by ``PRE_DELAY_S``."""
+    (mesh2hrtf_io.sparse_hrtf), shifted by ``HRIR_LEAD_S``."""
     from mesh2hrtf_io.errors import Mesh2HrtfIoError  # noqa: PLC0415
     from mesh2hrtf_io.sparse_hrtf import rebuild_hrirs  # noqa: PLC0415
 
@@ -100,7 +98,7 @@ def _rebuilt_from_sparse_set(spectra: np.ndarray, frequencies: np.ndarray, dc, s
     if dc is not None:
         spectra, frequencies = np.concatenate([dc, spectra], axis=-1), np.concatenate([[0.0], frequencies])
     try:
-        irs = rebuild_hrirs(spectra, frequencies, rate, int(2 * round(rate / 300)), PRE_DELAY_S, source)
+        irs = rebuild_hrirs(spectra, frequencies, rate, int(2 * round(rate / 300)), HRIR_LEAD_S, source)
     except Mesh2HrtfIoError as exc:
         raise AmtBridgeError(str(exc)) from exc
     return irs, rate

@@ -1,15 +1,16 @@
 """Where the reciprocal ear source sits, and how far that moves the solved DTFs from the dataset's reference.
 
     .venv/bin/python benchmarks/ear_source.py [--subject P143] [--frequencies 9000 14400] [--speed-of-sound 346.18]
-        [--rules ray_exit canal_floor assign_materials given_point] [--source-at X Y Z] [--canal-area 4] [--work DIR]
+        [--rules ray_exit canal_floor assign_materials given_point] [--source-at X Y Z] [--canal-area MM2] [--work DIR]
 
-The subject's unchanged SONICOM head (``head_graded_left.ply``, the ground truth) is exported twice on the
-reference SOFA's 793 directions, left ear only, at frequencies of the reference's own 150 Hz grid (so the
-reference HRTF is exact there): once with the source faces at the exit of the ray from the interaural centre
-along +y (the former rule), once with the source in the middle of the canal floor the surface leads down into
-from there (``stitching.ear_canal``, the rule now), and with the rule of Mesh2HRTF's AssignMaterials operator, which
-marks the dataset's own Blender projects (the face nearest the +y axis among the innermost faces within 2 mm of it).
-NumCalc solves each, one step at a time; each solved DTF
+The subject's unchanged SONICOM head (``head_graded_left.ply``, the ground truth) is exported once per source rule
+on the reference SOFA's 793 directions, left ear only, at frequencies of the reference's own 150 Hz grid (so the
+reference HRTF is exact there): ``ray_exit``, the source faces at the exit of the ray from the interaural centre
+along +y (the former rule); ``canal_floor``, the middle of the canal floor the surface leads down into from there
+(``stitching.ear_canal``, the rule now; ``--canal-area`` sets its area); ``assign_materials``, the face Mesh2HRTF's
+AssignMaterials operator picks (the one nearest the +y axis among the innermost faces within 2 mm of it; not the
+face the dataset's Blender project marks); ``given_point``, the face nearest ``--source-at`` (e.g. that marked
+face). NumCalc solves each, one step at a time; each solved DTF
 (dB, the mean over directions removed) is compared with the reference's (the HRIRs' exact DFT). Finished steps
 stay in ``--work``, so an interrupted run continues.
 ``--speed-of-sound`` solves with another c than Mesh2HRTF's exporter default (the reference may have used another).
@@ -67,8 +68,8 @@ def main() -> None:
     parser.add_argument("--speed-of-sound", type=float, default=None, help="m/s (default: Mesh2HRTF's 346.18)")
     parser.add_argument("--rules", nargs="+", default=["ray_exit", "canal_floor", "assign_materials"],
                         help="ray_exit, canal_floor, assign_materials, given_point (needs --source-at)")
-    parser.add_argument("--canal-area", type=float, default=4.0,
-                        help="rule canal_floor: the source's area (mm^2; the pipeline's rule takes 4)")
+    parser.add_argument("--canal-area", type=float, default=None,
+                        help="rule canal_floor: the source's area (mm^2; default: the pipeline's rule's)")
     parser.add_argument("--source-at", type=float, nargs=3, metavar=("X", "Y", "Z"),
                         help="rule given_point: the face whose centre is nearest this point (mm, head frame)")
     parser.add_argument("--numcalc", default="")
@@ -95,7 +96,8 @@ def main() -> None:
     numcalc = find_numcalc(args.numcalc or None)
     grid = grid_from_sofa(folder / "hrir_mesh2hrtf_48k.sofa", name="Directions")
     speed = args.speed_of_sound or SPEED_OF_SOUND_M_S
-    rule_of = {"ray_exit": exit_faces, "canal_floor": lambda mesh: ear_canal_elements(mesh, "left", args.canal_area),
+    canal_area = {} if args.canal_area is None else {"min_area_mm2": args.canal_area}
+    rule_of = {"ray_exit": exit_faces, "canal_floor": lambda mesh: ear_canal_elements(mesh, "left", **canal_area),
                "assign_materials": assign_materials_face,
                "given_point": lambda mesh: nearest_face(mesh, args.source_at)}
     rules = {name: rule_of[name](head) for name in args.rules}
@@ -107,8 +109,9 @@ def main() -> None:
     if len(centres) > 1:
         first, second = list(centres.values())[:2]
         figures["source_gap_mm"] = round(float(np.linalg.norm(first - second)), 2)
-    folder_name = ("_".join(f"{f:.0f}" for f in args.frequencies) + ("" if speed == SPEED_OF_SOUND_M_S else f"_c{speed:g}")
-                   + ("" if args.canal_area == 4.0 else f"_area{args.canal_area:g}"))
+    folder_name = ("_".join(f"{f:.0f}" for f in args.frequencies)
+                   + ("" if speed == SPEED_OF_SOUND_M_S else f"_c{speed:g}")
+                   + ("" if args.canal_area is None else f"_area{args.canal_area:g}"))
     for name, faces in rules.items():
         project = args.work / args.subject / folder_name / name
         if not (project / "parameters.json").is_file():

@@ -257,3 +257,23 @@ def test_scan_points_take_the_region_of_their_nearest_landmark(tmp_path):
     with pytest.raises(ValueError, match="vertices"):
         trimesh.Trimesh(np.zeros((3, 3)), [[0, 1, 2]]).export(tmp_path / "small.ply")
         landmark_positions_mm(tmp_path / "small.ply", template / "landmarks.yaml")
+
+
+def test_band_attribution_with_every_band_swapped_gives_the_conditions_own_differences(sonicom):
+    """benchmarks/band_attribution.py: the unchanged head solved here with all of another set's DTFs taken over (its
+    own direction-independent level and phase kept) moves QE/PE by what that set's own summary row says it differs
+    from the unchanged head: the DTFs carry the whole difference, so a band's share is meaningful."""
+    import subprocess
+    import sys
+
+    result = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "band_attribution.py"), "--subject", "P143"],
+                            capture_output=True, text=True, check=True, cwd=ROOT)
+    figures = json.loads(result.stdout.strip().splitlines()[-1])
+    rows = {r["condition"]: r for r in read_summary_csv(COMMITTED / "summary.csv") if r["subject"] == "P143"}
+    for donor in ("ppm", "own_pinna"):
+        swapped = figures["donors"][donor]["all bands"]
+        assert swapped["delta_qe_pp"] == pytest.approx(rows[donor]["delta_qe_vs_original_pp"], abs=0.1), donor
+        assert swapped["delta_pe_deg"] == pytest.approx(rows[donor]["delta_pe_vs_original_deg"], abs=0.1), donor
+    floor = figures["donors"]["reference"]["all bands"]
+    assert -floor["delta_qe_pp"] > 0.9 * rows["original"]["delta_qe_pp"]
+    assert -floor["delta_pe_deg"] > 0.9 * rows["original"]["delta_pe_deg"]

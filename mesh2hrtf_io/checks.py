@@ -13,6 +13,29 @@ from .constants import MIN_HEAD_EXTENT_MM
 from .errors import Mesh2HrtfIoError
 
 
+SLIVER_ANGLE_DEG = 5.0  # a triangle with a smaller angle is a sliver: NumCalc's surface pressure can spike on it
+
+
+def min_angles_deg(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Smallest interior angle (degrees) of every triangle; ~0 for needles and caps (slivers)."""
+    corners = np.asarray(vertices, dtype=np.float64)[np.asarray(faces)]
+    smallest = np.full(len(corners), 180.0)
+    for i in range(3):
+        u = corners[:, (i + 1) % 3] - corners[:, i]
+        v = corners[:, (i + 2) % 3] - corners[:, i]
+        norms = np.linalg.norm(u, axis=1) * np.linalg.norm(v, axis=1)
+        cosine = np.einsum("ij,ij->i", u, v) / np.where(norms > 0, norms, 1.0)
+        smallest = np.minimum(smallest, np.degrees(np.arccos(np.clip(cosine, -1.0, 1.0))))
+    return smallest
+
+
+def sliver_count(vertices: np.ndarray, faces: np.ndarray, angle_deg: float = SLIVER_ANGLE_DEG) -> int:
+    """Triangles with an angle under ``angle_deg``. Not an error of the mesh as such, but on 1 mm pinna meshes
+    such slivers (a 0.05 mm edge beside two 1.2 mm ones) made NumCalc's surface pressure jump by 20 dB above the
+    source's and bent the far field by ~1 dB at 150 Hz; the remesh stage removes them."""
+    return int((min_angles_deg(vertices, faces) < angle_deg).sum())
+
+
 def mesh_problems(vertices_mm: np.ndarray, faces: np.ndarray) -> list[str]:
     """All problems that would make NumCalc fail or silently compute nonsense (empty if none)."""
     problems = []

@@ -4,7 +4,8 @@ NumCalc is found from a configured path or on PATH. ``NumCalc -estimate_ram`` pr
 every step (``Memory.txt``), which the workflow passes to the scheduler as ``mem_mb``. A step runs as
 ``NumCalc -istart k -iend k`` in ``NumCalc/source_N``; its log ``NCk-k.out`` is checked for
 non-convergence ("Maximum number of iterations is reached!") and input problems ("Too many integral
-points"). A non-converged step is rerun once with more iterations, then reported. Each finished step
+points"). A non-converged step is rerun once with more iterations, then reported. Its boundary pressures are
+checked for spikes (``surface_spikes``: elements far louder than the ear's source), recorded in the status. Each finished step
 gets ``be.out/be.k/status.json``; steps with a complete, converged result are never recomputed.
 """
 from __future__ import annotations
@@ -23,6 +24,7 @@ from ppm.atomic import write_text_atomic
 
 from .errors import Mesh2HrtfIoError
 from .results import step_folder, step_is_complete
+from .surface_spikes import surface_spikes
 
 log = logging.getLogger(__name__)
 
@@ -148,6 +150,14 @@ def run_step(numcalc: Path, source_folder: str | os.PathLike, step: int, expecte
                     2 * iterations)
     status = {"step": step, "solver": "NumCalc", "converged": not attempts[-1]["problems"],
               "problems": attempts[-1]["problems"], "attempts": attempts}
+    spikes = surface_spikes(source_folder, step)
+    if spikes is not None:
+        status["surface_spikes"] = spikes
+        if spikes["elements"]:
+            log.warning("%s step %d: %d boundary elements are up to %.1f dB louder than the ear's source (elements %s): "
+                        "numerical spikes, e.g. on sliver triangles; remesh the head (its far field may be off)",
+                        source_folder, step, len(spikes["elements"]), spikes["max_db_above_source"],
+                        spikes["elements"][:10])
     write_text_atomic(step_folder(source_folder, step) / "status.json", json.dumps(status, indent=2) + "\n")
     if not status["converged"]:
         raise NumCalcError(f"{source_folder}: step {step} {'; '.join(status['problems'])} after "

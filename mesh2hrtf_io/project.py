@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import logging
 import os
 from pathlib import Path
 
@@ -19,7 +20,7 @@ import trimesh
 
 from ppm.atomic import atomic_directory
 
-from .checks import check_mesh
+from .checks import SLIVER_ANGLE_DEG, check_mesh, sliver_count
 from .clusters import planned_cluster_tree
 from .constants import (DENSITY_KG_M3, EAR_VELOCITY_M_S, GRID_START_ID, MESH2HRTF_VERSION, SOURCE_TO_ROOT,
                         SPEED_OF_SOUND_M_S)
@@ -27,6 +28,8 @@ from .errors import Mesh2HrtfIoError
 from .frequency_sets import check_frequency_set, is_linear_grid
 from .grids import EvaluationGrid
 from .units import mm_to_m
+
+log = logging.getLogger(__name__)
 
 SOURCE_TYPES = {"Both ears": ("left", "right"), "Left ear": ("left",), "Right ear": ("right",)}
 
@@ -128,6 +131,11 @@ def write_project(folder: str | os.PathLike, vertices_mm: np.ndarray, faces: np.
     vertices_mm = np.asarray(vertices_mm, dtype=np.float64)
     faces = np.asarray(faces, dtype=np.int64)
     check_mesh(vertices_mm, faces, source=f"head mesh for {folder}")
+    slivers = sliver_count(vertices_mm, faces)
+    if slivers:
+        log.warning("head mesh for %s has %d sliver triangles (an angle under %g deg): NumCalc's surface pressure can "
+                    "spike on them; remesh it (the stitching stage's remove_slivers does)", folder, slivers,
+                    SLIVER_ANGLE_DEG)
     frequencies = _check_frequencies(frequencies_hz)
     ears = SOURCE_TYPES[source_type]
     chosen = {}

@@ -11,12 +11,13 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
+from mesh2hrtf_io.checks import SLIVER_ANGLE_DEG
 from ppm.atomic import write_text_atomic
 from ppm.mesh_io import write_mesh
 
 from .ear_canal import ear_canal_elements
 from .errors import StitchError
-from .remesh import DEFAULT_BANDS, remesh_graded, repair_self_intersections
+from .remesh import DEFAULT_BANDS, remesh_graded, remove_slivers, repair_self_intersections
 from .replace_pinna import own_pinna_region, replace_pinna
 from .report import validate_head
 from .seam import smooth_seam
@@ -69,10 +70,11 @@ def stitch_files(head_path: str | os.PathLike, pinna_path: str | os.PathLike, ou
 
 def remesh_files(stitched_path: str | os.PathLike, pinna_path: str | os.PathLike, out_mesh: str | os.PathLike,
                  out_report: str | os.PathLike, bands=DEFAULT_BANDS) -> dict:
-    """Graded remeshing around the pinna, self-intersection repair, and the validation report."""
+    """Graded remeshing around the pinna, self-intersection and sliver repair, and the validation report."""
     start = time.perf_counter()
     stitched, pinna = _load(stitched_path, "stitched head"), _load(pinna_path, "pinna")
-    mesh = repair_self_intersections(remesh_graded(stitched, np.asarray(pinna.vertices), bands))
+    mesh = remove_slivers(repair_self_intersections(remesh_graded(stitched, np.asarray(pinna.vertices), bands)))
+    mesh = repair_self_intersections(mesh)  # in case the sliver repair made one
     report = validate_head(mesh, pinna)
     # the reciprocal sources for the exporter: ear-canal entrance faces of the final mesh
     report["ear_elements"] = {side: ear_canal_elements(mesh, side, source=str(out_mesh)).tolist()
@@ -82,7 +84,8 @@ def remesh_files(stitched_path: str | os.PathLike, pinna_path: str | os.PathLike
                           "max_deviation_mm": b.max_deviation_mm} for b in bands])
     if not report["ok"]:
         raise StitchError(f"{stitched_path}: the remeshed head is not fit for BEM: {report['problems']}, "
-                          f"{report['self_intersecting_faces']} self-intersecting faces")
+                          f"{report['self_intersecting_faces']} self-intersecting faces, {report['sliver_faces']} sliver "
+                          f"triangles (an angle under {SLIVER_ANGLE_DEG:g} deg)")
     write_mesh(out_mesh, mesh.vertices, mesh.faces)
     write_text_atomic(out_report, json.dumps(report, indent=2) + "\n")
     log.info("remeshed %s: %d triangles, pinna edges median %.2f mm", out_mesh, report["n_triangles"],

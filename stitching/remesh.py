@@ -15,6 +15,8 @@ import numpy as np
 import trimesh
 from scipy.spatial import cKDTree
 
+from mesh2hrtf_io.checks import min_angles_deg
+
 from .errors import StitchError
 
 log = logging.getLogger(__name__)
@@ -113,3 +115,37 @@ def repair_self_intersections(mesh: trimesh.Trimesh, rounds: int = 4) -> trimesh
         ms.apply_coord_laplacian_smoothing(stepsmoothnum=3, selected=True, cotangentweight=False)
     out = ms.current_mesh()
     return trimesh.Trimesh(out.vertex_matrix(), out.face_matrix(), process=False)
+
+
+SLIVER_REPAIR_BELOW_DEG = 10.0  # triangles with a smaller angle are remeshed with their neighbourhood
+
+
+def remove_slivers(mesh: trimesh.Trimesh, below_deg: float = SLIVER_REPAIR_BELOW_DEG, rounds: int = 3,
+                   max_deviation_mm: float = 0.05) -> trimesh.Trimesh:
+    """Remesh the two rings around every triangle with an angle under ``below_deg`` (needles and caps, e.g. where
+    the stitch seam meets a feature line that the graded remesh keeps) at the local median edge length, with
+    feature preservation relaxed to 120 degrees there so that the short edge can collapse and the long one flip.
+    Every vertex stays within ``max_deviation_mm`` of the surface. Returns the mesh (unchanged if it had none)."""
+    pymeshlab = _pymeshlab()
+    current = mesh
+    for attempt in range(rounds):
+        bad = min_angles_deg(current.vertices, current.faces) < below_deg
+        if not bad.any():
+            break
+        ms = pymeshlab.MeshSet()
+        ms.add_mesh(pymeshlab.Mesh(vertex_matrix=np.asarray(current.vertices, np.float64),
+                                   face_matrix=np.asarray(current.faces, np.int32),
+                                   f_scalar_array=bad.astype(np.float64)))
+        ms.compute_selection_by_condition_per_face(condselect="fq > 0.5")
+        ms.apply_selection_dilatation()
+        ms.apply_selection_dilatation()
+        selected = ms.current_mesh().face_selection_array()
+        target = float(np.median(current.edges_unique_length[np.unique(current.faces_unique_edges[selected])]))
+        log.info("remeshing %d sliver triangles (angle < %.0f deg) with %d around them at %.2f mm (round %d)",
+                 int(bad.sum()), below_deg, int(selected.sum()), target, attempt + 1)
+        ms.meshing_isotropic_explicit_remeshing(iterations=4, selectedonly=True, targetlen=pymeshlab.PureValue(target),
+                                                featuredeg=120.0, checksurfdist=True,
+                                                maxsurfdist=pymeshlab.PureValue(max_deviation_mm))
+        out = ms.current_mesh()
+        current = trimesh.Trimesh(out.vertex_matrix(), out.face_matrix(), process=False)
+    return current

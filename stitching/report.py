@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import trimesh
 
-from mesh2hrtf_io.checks import mesh_problems
+from mesh2hrtf_io.checks import SLIVER_ANGLE_DEG, mesh_problems, min_angles_deg
 from mesh2hrtf_io.constants import ELEMENTS_PER_WAVELENGTH, SPEED_OF_SOUND_M_S
 
 from .remesh import face_distance_to, self_intersections
@@ -27,6 +27,8 @@ def validate_head(mesh: trimesh.Trimesh, pinna: trimesh.Trimesh | None = None, p
         "problems": problems, "self_intersecting_faces": self_intersections(mesh),
         "volume_mm3": float(mesh.volume), "normals_outward": bool(mesh.volume > 0), "n_triangles": int(len(mesh.faces)),
         "n_vertices": int(len(mesh.vertices)),
+        "min_angle_deg": float(min_angles_deg(mesh.vertices, mesh.faces).min()),
+        "sliver_faces": int((min_angles_deg(mesh.vertices, mesh.faces) < SLIVER_ANGLE_DEG).sum()),
         "edge_mm": {"median": float(np.median(edges)), "p95": float(np.percentile(edges, 95)), "max": float(edges.max())},
     }
     report["max_frequency_hz_6_per_wavelength"] = float(SPEED_OF_SOUND_M_S * 1000 / (ELEMENTS_PER_WAVELENGTH * edges.max()))
@@ -42,5 +44,6 @@ def validate_head(mesh: trimesh.Trimesh, pinna: trimesh.Trimesh | None = None, p
         _, distance, _ = trimesh.proximity.closest_point(mesh, samples)
         report["pinna_to_head_mm"] = {"median": float(np.median(distance)), "p95": float(np.percentile(distance, 95)),
                                       "max": float(distance.max())}
-    report["ok"] = bool(report["closed"] and not problems and report["self_intersecting_faces"] == 0)
+    report["ok"] = bool(report["closed"] and not problems and report["self_intersecting_faces"] == 0
+                        and report["sliver_faces"] == 0)
     return report

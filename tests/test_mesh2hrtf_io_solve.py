@@ -211,3 +211,22 @@ def test_a_solve_depends_on_frequency_over_speed_of_sound_only(tmp_path):
         spectra[name] = hrtf.Data_Real + 1j * hrtf.Data_Imag
     np.testing.assert_allclose(spectra["c346"], spectra["c343"], rtol=1e-6, atol=1e-9)
     assert np.abs(np.diff(20 * np.log10(np.abs(spectra["c343"])), axis=-1)).max() > 0.5  # the two steps differ
+
+
+def test_a_boundary_element_far_louder_than_the_source_is_reported_as_a_spike(tmp_path):
+    """NumCalc's pBoundary of one step (element id, real, imaginary) with the source on elements 3-4 of NC.inp's
+    BOUNDARY block: an element 22 dB above the source's loudest is a spike, one 3 dB below is not; a step without
+    pBoundary (restored from the store) is not judged."""
+    from mesh2hrtf_io.surface_spikes import source_elements, surface_spikes
+
+    folder = tmp_path / "source_1"
+    (folder / "be.out" / "be.1").mkdir(parents=True)
+    (folder / "NC.inp").write_text("BOUNDARY\n## Left ear\nELEM 3 TO 4 VELO 0.1 -1 0.0 -1\nRETU\n")
+    assert source_elements((folder / "NC.inp").read_text()).tolist() == [3, 4]
+    levels_db = [-30.0, -18.0, 7.0, -15.0, -16.0, -40.0]  # element 2: +22 dB over the source's -15 dB
+    rows = [f"    {i}  {10 ** (level / 20):.6E}  0.000000E+00" for i, level in enumerate(levels_db)]
+    (folder / "be.out" / "be.1" / "pBoundary").write_text("Mesh2HRTF 1.2.4\n    2\n    0 6\n" + "\n".join(rows) + "\n")
+    spikes = surface_spikes(folder, 1)
+    assert spikes["elements"] == [2] and spikes["max_db_above_source"] == pytest.approx(22.0, abs=0.01)
+    assert surface_spikes(folder, 1, margin_db=25.0)["elements"] == []
+    assert surface_spikes(folder, 2) is None

@@ -11,7 +11,8 @@ import trimesh
 from ppm.align import align, prepare_target
 from stitching import StitchError, ear_canal_elements, replace_pinna, self_intersections, validate_head
 from stitching.pipeline import remesh_files, stitch_files
-from stitching.remesh import face_distance_to
+from mesh2hrtf_io.checks import min_angles_deg, sliver_count
+from stitching.remesh import face_distance_to, remove_slivers
 
 
 @pytest.fixture(scope="module")
@@ -63,6 +64,7 @@ def test_fitted_ppm_pinna_gives_a_bem_ready_head(tmp_path, sonicom, p143_ppm_pin
     assert stitch["closed"] and stitch["seam_faces"] > 100
     report = remesh_files(tmp_path / "stitched.ply", pinna_path, tmp_path / "head.ply", tmp_path / "validation.json")
     assert report["ok"] and report["closed"] and report["self_intersecting_faces"] == 0 and report["normals_outward"]
+    assert report["sliver_faces"] == 0 and report["min_angle_deg"] >= 5.0
     assert abs(report["pinna_edge_mm"]["median"] - 1.0) <= 0.15
     assert 20_000 <= report["n_triangles"] <= 45_000
     assert report["pinna_to_head_mm"]["p95"] < 0.1  # the seam does not distort the pinna
@@ -165,3 +167,24 @@ def test_the_heads_own_pinna_under_a_fitted_ppm_goes_back_through_the_same_path(
     with pytest.raises(StitchError, match="no head face lies inside"):
         own_pinna_region(p143_head, p143_ppm_pinna.copy().apply_translation([0, -140.0, 0]).apply_transform(
             np.diag([1.0, -1.0, 1.0, 1.0])).apply_translation([0, 150.0, 200.0]))
+
+
+def test_sliver_triangles_are_remeshed_away_without_moving_the_surface():
+    """A 1 mm sphere mesh with one vertex pushed 97 % of the way along an edge (two needles of ~1 deg and the caps
+    beside them, the kind of triangle NumCalc spiked on): afterwards no angle is under 10 deg, the surface is
+    closed and within 0.05 mm of the input, and a mesh without slivers is returned unchanged."""
+    sphere = trimesh.creation.icosphere(subdivisions=5, radius=30.0)  # ~1.2 mm edges
+    assert sliver_count(sphere.vertices, sphere.faces) == 0
+    assert remove_slivers(sphere) is sphere
+    a, b = sphere.edges_unique[0]
+    vertices = sphere.vertices.copy()
+    vertices[a] = vertices[a] + 0.97 * (vertices[b] - vertices[a])
+    vertices[a] *= 30.0 / np.linalg.norm(vertices[a])  # back onto the sphere
+    needles = trimesh.Trimesh(vertices, sphere.faces, process=False)
+    assert min_angles_deg(needles.vertices, needles.faces).min() < 3.0 and sliver_count(needles.vertices, needles.faces) >= 2
+    repaired = remove_slivers(needles)
+    assert min_angles_deg(repaired.vertices, repaired.faces).min() >= 10.0
+    assert repaired.is_watertight and repaired.is_winding_consistent and repaired.volume > 0
+    radius = np.linalg.norm(repaired.vertices, axis=1)
+    assert np.abs(radius - 30.0).max() < 0.05
+    assert abs(len(repaired.faces) - len(sphere.faces)) < 200  # only the neighbourhood was remeshed

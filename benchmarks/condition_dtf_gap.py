@@ -49,13 +49,15 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--evaluation", type=Path, default=ROOT / "evaluation" / "sonicom")
     args = parser.parse_args()
+    from reporting.evaluation import left_hrtf_name
+
     rows = list(csv.DictReader((args.evaluation / "summary.csv").open()))
     figures = {}
     for row in rows:
         subject, condition = row["subject"], row["condition"]
         if condition == "reference":
             continue
-        frequencies, gap = left_ear_gap(subject, args.evaluation / "sofa" / f"{subject}_{condition}_left_HRTF.sofa")
+        frequencies, gap = left_ear_gap(subject, args.evaluation / "sofa" / left_hrtf_name(subject, condition))
         median, p95 = np.median(gap, axis=0), np.percentile(gap, 95, axis=0)
         band = (frequencies >= BAND_HZ[0]) & (frequencies <= BAND_HZ[1])
         band_median = float(np.median(gap[:, band]))

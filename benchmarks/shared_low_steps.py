@@ -35,6 +35,7 @@ def main() -> None:
     import yaml
 
     from amt_bridge.evaluation import compare_conditions
+    from reporting.evaluation import left_hrtf_files
 
     settings = yaml.safe_load((ROOT / "config" / "config.yaml").read_text())["localisation"]
     figures: dict = {"conditions": {}}
@@ -43,9 +44,8 @@ def main() -> None:
         subject = original.name.split("_")[0]
         unchanged = sofar.read_sofa(str(original), verify=False)
         frequencies = np.asarray(unchanged.N, dtype=np.float64)
-        others = [p for p in sorted((args.evaluation / "sofa").glob(f"{subject}_*_left_HRTF.sofa")) if p != original]
-        for path in others:
-            condition = path.name[len(subject) + 1:-len("_left_HRTF.sofa")]
+        others = {name: p for name, p in left_hrtf_files(args.evaluation / "sofa", subject).items() if p != original}
+        for condition, path in others.items():
             solved = sofar.read_sofa(str(path), verify=False)
             with tempfile.TemporaryDirectory() as tmp:
                 variants = {"as_solved": path}

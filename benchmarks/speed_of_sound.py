@@ -90,11 +90,11 @@ def main() -> None:
     import yaml
 
     from mesh2hrtf_io.constants import SPEED_OF_SOUND_M_S
+    from reporting.evaluation import left_hrtf_files
 
     settings = yaml.safe_load((ROOT / "config" / "config.yaml").read_text())["localisation"]
     reference_sofa = SONICOM / args.subject / settings["reference_sofa"]
-    files = {p.name[len(args.subject) + 1:-len("_left_HRTF.sofa")]: p
-             for p in sorted((args.evaluation / "sofa").glob(f"{args.subject}_*_left_HRTF.sofa"))}
+    files = left_hrtf_files(args.evaluation / "sofa", args.subject)
     if "original" not in files:
         raise SystemExit(f"{args.evaluation}/sofa: no solve of {args.subject}'s unchanged head (condition original)")
     figures: dict = {"subject": args.subject, "solved_with_m_s": SPEED_OF_SOUND_M_S, "gap_rms_db": {}}

@@ -325,13 +325,25 @@ def figure6(results: str | os.PathLike, subjects: list[str], conditions: dict[st
     return Path(path)
 
 
+def left_hrtf_name(subject: str, condition: str) -> str:
+    """File name of a condition's solved left-ear HRTFs in an evaluation folder's ``sofa/``."""
+    return f"{subject}_{condition}_left_HRTF.sofa"
+
+
+def left_hrtf_files(sofa_folder: str | os.PathLike, subject: str) -> dict[str, Path]:
+    """Condition -> the solved left-ear HRTF file of ``subject`` in an evaluation's ``sofa/`` folder."""
+    tail = left_hrtf_name("", "")[1:]  # "_left_HRTF.sofa"
+    return {path.name[len(subject) + 1:-len(tail)]: path
+            for path in sorted(Path(sofa_folder).glob(left_hrtf_name(subject, "*")))}
+
+
 def copy_sofa(hrtfs: dict[tuple[str, str], str], folder: str | os.PathLike) -> list[Path]:
     """The solved left-ear HRTFs (SimpleFreeFieldHRTF) as ``<subject>_<condition>_left_HRTF.sofa``."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     written = []
     for (subject, condition), source in sorted(hrtfs.items()):
-        target = folder / f"{subject}_{condition}_left_HRTF.sofa"
+        target = folder / left_hrtf_name(subject, condition)
         with atomic_path(target) as tmp:
             shutil.copyfile(source, tmp)
         written.append(target)

@@ -45,6 +45,7 @@ def main() -> None:
                 "template": "leave-one-out" if (loo / "template_left.ply").is_file() else "default",
                 "closed_manifold": bool(report["closed"] and report["manifold"]),
                 "self_intersecting_faces": report["self_intersecting_faces"],
+                "sliver_faces": report["sliver_faces"], "min_angle_deg": round(report["min_angle_deg"], 2),
                 "pinna_edge_median_mm": round(report["pinna_edge_mm"]["median"], 3),
                 "pinna_edge_p95_mm": round(report["pinna_edge_mm"]["p95"], 3),
                 "triangles": report["n_triangles"], "original_triangles": original,
@@ -53,6 +54,7 @@ def main() -> None:
                 "seam_gap_mm": round(stitch["rim_gap_mm"], 2), "seconds": round(seconds, 1)}
             h = heads[subject]
             print(f"{subject}: closed manifold {h['closed_manifold']}, {h['self_intersecting_faces']} self-intersecting, "
+                  f"{h['sliver_faces']} slivers (smallest angle {h['min_angle_deg']} deg), "
                   f"pinna edges median {h['pinna_edge_median_mm']} mm (p95 {h['pinna_edge_p95_mm']}), "
                   f"{h['triangles']} triangles (original graded mesh {original}), PPM pinna -> head p95 "
                   f"{h['pinna_to_head_p95_mm']} mm, {h['seconds']} s ({h['template']} template)")
@@ -61,6 +63,8 @@ def main() -> None:
                                                  for h in heads.values()),
                       "pinna_edge_median_mm": worst["pinna_edge_median_mm"],
                       "max_triangles": max(h["triangles"] for h in heads.values()),
+                      "sliver_faces": sum(h["sliver_faces"] for h in heads.values()),
+                      "min_angle_deg": min(h["min_angle_deg"] for h in heads.values()),
                       "seconds": max(h["seconds"] for h in heads.values()), "heads": heads}))
 
 

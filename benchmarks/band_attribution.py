@@ -20,7 +20,6 @@ minus base), with the band edges in Hz.
 """
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 import tempfile
@@ -28,9 +27,10 @@ from pathlib import Path
 
 import numpy as np
 
+from committed import committed_subject, subject_arguments
+
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
-SONICOM = ROOT.parent / "shared" / "data" / "sonicom"
 BAND_EDGES_HZ = (0.0, 4400.0, 6000.0, 8500.0, 10300.0, 13000.0, 18000.0, 24001.0)
 ALL = (0.0, 24001.0)
 
@@ -77,22 +77,13 @@ def band_label(band: tuple[float, float]) -> str:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument("--evaluation", type=Path, default=ROOT / "evaluation" / "sonicom")
-    parser.add_argument("--subject", default="P143")
-    args = parser.parse_args()
+    args = subject_arguments(__doc__)
 
     import sofar
-    import yaml
 
     from mesh2hrtf_io.sparse_hrtf import sample_spectra
-    from reporting.evaluation import left_hrtf_files
 
-    settings = yaml.safe_load((ROOT / "config" / "config.yaml").read_text())["localisation"]
-    reference_sofa = SONICOM / args.subject / settings["reference_sofa"]
-    files = left_hrtf_files(args.evaluation / "sofa", args.subject)
-    if "original" not in files:
-        raise SystemExit(f"{args.evaluation}/sofa: no solve of {args.subject}'s unchanged head (condition original)")
+    settings, reference_sofa, files = committed_subject(args.evaluation, args.subject)
     base_sofa = sofar.read_sofa(str(files["original"]), verify=False)
     frequencies = np.asarray(base_sofa.N, dtype=np.float64)
     base = left_spectra(base_sofa)

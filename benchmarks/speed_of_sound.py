@@ -19,7 +19,6 @@ and c (346.18, 343.18 and the best), and ``predictions``: per c and condition ``
 """
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 import tempfile
@@ -27,9 +26,10 @@ from pathlib import Path
 
 import numpy as np
 
+from committed import committed_subject, subject_arguments
+
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
-SONICOM = ROOT.parent / "shared" / "data" / "sonicom"
 BANDS_HZ = {"2-10.3kHz": (2000.0, 10300.0), "10.3-18kHz": (10300.0, 18000.0), "0.7-18kHz": (700.0, 18000.0)}
 TUTORIAL_M_S = 343.18  # Mesh2HRTF 1.2.4's HRTF tutorial script
 SCAN_M_S = np.unique(np.r_[np.arange(336.0, 350.01, 0.5), TUTORIAL_M_S, 346.18])
@@ -82,21 +82,11 @@ def predictions_at(c: float, files: dict[str, Path], reference_sofa: Path, setti
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument("--evaluation", type=Path, default=ROOT / "evaluation" / "sonicom")
-    parser.add_argument("--subject", default="P143")
-    args = parser.parse_args()
-
-    import yaml
+    args = subject_arguments(__doc__)
 
     from mesh2hrtf_io.constants import SPEED_OF_SOUND_M_S
-    from reporting.evaluation import left_hrtf_files
 
-    settings = yaml.safe_load((ROOT / "config" / "config.yaml").read_text())["localisation"]
-    reference_sofa = SONICOM / args.subject / settings["reference_sofa"]
-    files = left_hrtf_files(args.evaluation / "sofa", args.subject)
-    if "original" not in files:
-        raise SystemExit(f"{args.evaluation}/sofa: no solve of {args.subject}'s unchanged head (condition original)")
+    settings, reference_sofa, files = committed_subject(args.evaluation, args.subject)
     figures: dict = {"subject": args.subject, "solved_with_m_s": SPEED_OF_SOUND_M_S, "gap_rms_db": {}}
     best = None
     for condition in ("original", "own_pinna"):

@@ -46,6 +46,22 @@ def _pymeshlab():
     return pymeshlab
 
 
+def _meshset_selecting(mesh: trimesh.Trimesh, selected: np.ndarray):
+    """A pymeshlab MeshSet holding ``mesh`` with the faces of the boolean mask ``selected`` selected."""
+    pymeshlab = _pymeshlab()
+    ms = pymeshlab.MeshSet()
+    ms.add_mesh(pymeshlab.Mesh(vertex_matrix=np.asarray(mesh.vertices, np.float64),
+                               face_matrix=np.asarray(mesh.faces, np.int32),
+                               f_scalar_array=np.asarray(selected, dtype=np.float64)))
+    ms.compute_selection_by_condition_per_face(condselect="fq > 0.5")
+    return ms
+
+
+def _current_trimesh(ms) -> trimesh.Trimesh:
+    out = ms.current_mesh()
+    return trimesh.Trimesh(out.vertex_matrix(), out.face_matrix(), process=False)
+
+
 def face_distance_to(points_mm: np.ndarray, mesh: trimesh.Trimesh) -> np.ndarray:
     """Distance (mm) of every face centroid to the nearest of ``points_mm``."""
     return cKDTree(points_mm).query(mesh.triangles_center)[0]
@@ -69,16 +85,11 @@ def remesh_graded(mesh: trimesh.Trimesh, pinna_points_mm: np.ndarray, bands=DEFA
             log.info("band < %.0f mm: median edge %.2f mm already near %.1f mm; kept", band.up_to_mm, median_edge,
                      band.edge_mm)
             continue
-        ms = pymeshlab.MeshSet()
-        ms.add_mesh(pymeshlab.Mesh(vertex_matrix=np.asarray(current.vertices, np.float64),
-                                   face_matrix=np.asarray(current.faces, np.int32),
-                                   f_scalar_array=selected.astype(np.float64)))
-        ms.compute_selection_by_condition_per_face(condselect="fq > 0.5")
+        ms = _meshset_selecting(current, selected)
         ms.meshing_isotropic_explicit_remeshing(iterations=iterations, selectedonly=True,
                                                 targetlen=pymeshlab.PureValue(band.edge_mm), featuredeg=60.0,
                                                 checksurfdist=True, maxsurfdist=pymeshlab.PureValue(band.max_deviation_mm))
-        out = ms.current_mesh()
-        current = trimesh.Trimesh(out.vertex_matrix(), out.face_matrix(), process=False)
+        current = _current_trimesh(ms)
         log.info("band < %.0f mm: %d faces at median edge %.2f mm remeshed to %.1f mm; now %d faces", band.up_to_mm,
                  int(selected.sum()), median_edge, band.edge_mm, len(current.faces))
     if not (current.is_watertight and current.is_winding_consistent):
@@ -132,11 +143,7 @@ def remove_slivers(mesh: trimesh.Trimesh, below_deg: float = SLIVER_REPAIR_BELOW
         bad = min_angles_deg(current.vertices, current.faces) < below_deg
         if not bad.any():
             break
-        ms = pymeshlab.MeshSet()
-        ms.add_mesh(pymeshlab.Mesh(vertex_matrix=np.asarray(current.vertices, np.float64),
-                                   face_matrix=np.asarray(current.faces, np.int32),
-                                   f_scalar_array=bad.astype(np.float64)))
-        ms.compute_selection_by_condition_per_face(condselect="fq > 0.5")
+        ms = _meshset_selecting(current, bad)
         ms.apply_selection_dilatation()
         ms.apply_selection_dilatation()
         selected = ms.current_mesh().face_selection_array()
@@ -146,6 +153,5 @@ def remove_slivers(mesh: trimesh.Trimesh, below_deg: float = SLIVER_REPAIR_BELOW
         ms.meshing_isotropic_explicit_remeshing(iterations=4, selectedonly=True, targetlen=pymeshlab.PureValue(target),
                                                 featuredeg=120.0, checksurfdist=True,
                                                 maxsurfdist=pymeshlab.PureValue(max_deviation_mm))
-        out = ms.current_mesh()
-        current = trimesh.Trimesh(out.vertex_matrix(), out.face_matrix(), process=False)
+        current = _current_trimesh(ms)
     return current

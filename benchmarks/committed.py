@@ -1,0 +1,31 @@
+"""The committed evaluation files a benchmark reads: localisation settings, a subject's reference SOFA and its
+solved left-ear HRTF files by condition (``evaluation/sonicom/sofa``), with the unchanged head required."""
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+SONICOM = ROOT.parent / "shared" / "data" / "sonicom"
+
+
+def committed_subject(evaluation: Path, subject: str) -> tuple[dict, Path, dict[str, Path]]:
+    """(config localisation settings, the subject's reference SOFA, condition -> left-ear HRTF file); exits with
+    a message naming the folder when the subject's unchanged head (condition ``original``) is not there."""
+    import yaml
+
+    from reporting.evaluation import left_hrtf_files
+
+    settings = yaml.safe_load((ROOT / "config" / "config.yaml").read_text())["localisation"]
+    files = left_hrtf_files(evaluation / "sofa", subject)
+    if "original" not in files:
+        raise SystemExit(f"{evaluation}/sofa: no solve of {subject}'s unchanged head (condition original)")
+    return settings, SONICOM / subject / settings["reference_sofa"], files
+
+
+def subject_arguments(description: str) -> argparse.Namespace:
+    """``--evaluation`` (the committed evaluation folder) and ``--subject`` (default P143) from the command line."""
+    parser = argparse.ArgumentParser(description=description)
+    parser.add_argument("--evaluation", type=Path, default=ROOT / "evaluation" / "sonicom")
+    parser.add_argument("--subject", default="P143")
+    return parser.parse_args()

@@ -1,5 +1,7 @@
 """The NumCalc solve plan printed before a run: steps stored vs to solve, and solver hours estimated from the
-committed step store (evaluation/sonicom/steps), whose ppm heads took 4.0-6.1 CPU hours each."""
+committed step store (evaluation/sonicom/steps), whose heads took 1.8-3.9 CPU hours each."""
+import shutil
+
 import numpy as np
 
 import trimesh
@@ -12,23 +14,27 @@ from conftest import ROOT
 STORE = ROOT / "evaluation" / "sonicom" / "steps"
 
 
-def test_plan_counts_stored_steps_and_estimates_the_rest_from_the_committed_store():
+def test_plan_counts_stored_steps_and_estimates_the_rest_from_the_committed_store(tmp_path):
     measured = measured_step_seconds(STORE)
     assert set(measured) == set(range(1, 41))  # every step of the 40-frequency set has been solved somewhere
     # NumCalc iterates longest at the lowest frequencies and has the most work at the highest: both ends cost more
     # than the middle of the set
     middle = sorted(measured[s] for s in range(10, 31))[10]
     assert measured[1] > 2 * middle and measured[40] > 2 * middle
-    rows = plan_rows(STORE, [("P039", "ppm"), ("S_new", "ppm")], 40, [1])
+    # a store holding 40 steps of a PPM head it does not keep (the committed steps of P143's unchanged head, copied
+    # without a head.ply): a rebuild is not the same mesh, so none of them counts
+    store = tmp_path / "steps"
+    shutil.copytree(STORE / "P143" / "original" / "source_1", store / "S_old" / "ppm" / "source_1")
+    copied = measured_step_seconds(store)
+    rows = plan_rows(store, [("S_old", "ppm"), ("S_new", "ppm")], 40, [1])
     stored, new = rows
-    # P039's PPM steps were solved for a head the store does not keep: a rebuild is not the same mesh
     assert (stored["stored"], stored["usable"], stored["to_solve"], stored["unknown_head"]) == (40, 0, 40, True)
     assert (new["stored"], new["to_solve"]) == (0, 40)
     assert 2.0 < new["solver_hours"] < 8.0
-    assert abs(new["solver_hours"] - sum(measured.values()) / 3600.0) < 1e-9
+    assert abs(new["solver_hours"] - sum(copied.values()) / 3600.0) < 1e-9
     text = plan_text(rows, cores=2)
     assert "S_new ppm: 40 of 40 steps to solve (0 stored)" in text
-    assert "P039 ppm: 40 of 40 steps to solve (40 stored for a head the store does not keep" in text
+    assert "S_old ppm: 40 of 40 steps to solve (40 stored for a head the store does not keep" in text
     assert f"~{(stored['solver_hours'] + new['solver_hours']) / 2:.1f} h on 2 core(s)" in text
 
 

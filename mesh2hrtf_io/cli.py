@@ -1,4 +1,4 @@
-"""Command line: ``m2h export | solve | collect | cost`` for Mesh2HRTF projects."""
+"""Command line: ``m2h export | solve | collect | cost | spikes | doctor`` for Mesh2HRTF projects."""
 from __future__ import annotations
 
 import argparse
@@ -71,6 +71,14 @@ def _cost(args) -> dict:
     return project_cost(args.project, args.solver, args.numcalc).as_dict()
 
 
+def _spikes(args) -> dict:
+    from .surface_spikes import SPIKE_MARGIN_DB, project_spikes  # noqa: PLC0415
+
+    if not (args.project / "NumCalc").is_dir():
+        raise Mesh2HrtfIoError(f"{args.project}: no NumCalc folder (not a Mesh2HRTF project)")
+    return project_spikes(args.project, SPIKE_MARGIN_DB if args.margin_db is None else args.margin_db)
+
+
 def _doctor(args) -> dict:
     from .doctor import doctor  # noqa: PLC0415
 
@@ -109,11 +117,16 @@ def main(argv: list[str] | None = None) -> int:
     collect.add_argument("--output", type=Path, default=None)
     collect.add_argument("--hrir-rate", type=float, default=HRIR_RATE_HZ, help="rate of HRIRs rebuilt from a sparse set (Hz)")
     collect.add_argument("--hrir-samples", type=int, default=HRIR_SAMPLES, help="taps of HRIRs rebuilt from a sparse set")
+    spikes = sub.add_parser("spikes", help="boundary elements of solved steps far louder than the ear's source")
+    spikes.add_argument("project", type=Path)
+    spikes.add_argument("--margin-db", type=float, default=None, help="dB above the source's loudest element "
+                        "that make a spike (default 6)")
     check = sub.add_parser("doctor", help="say which solver is usable here, and why not")
     check.add_argument("--numcalc", default=None, help="NumCalc binary to check (default: PATH, then .venv/bin)")
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(message)s")
-    handlers = {"export": _export, "solve": _solve, "collect": _collect, "cost": _cost, "doctor": _doctor}
+    handlers = {"export": _export, "solve": _solve, "collect": _collect, "cost": _cost, "doctor": _doctor,
+                "spikes": _spikes}
     try:
         result = handlers[args.command](args)
     except (Mesh2HrtfIoError, PpmError) as exc:

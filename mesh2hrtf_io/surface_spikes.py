@@ -55,3 +55,15 @@ def surface_spikes(source_folder: str | os.PathLike, step: int, margin_db: float
     above = level - level[sources].max()
     spikes = np.where(others & (above > margin_db))[0]
     return {"elements": spikes.tolist(), "max_db_above_source": round(float(above[others].max()), 2)}
+
+
+def project_spikes(project: str | os.PathLike, margin_db: float = SPIKE_MARGIN_DB) -> dict:
+    """Every solved step of every source of a project judged by :func:`surface_spikes` (steps restored from a
+    store have no pBoundary and are left out): {"source_N": {step: result}}, plus "spiked_steps"."""
+    found: dict = {"spiked_steps": 0}
+    for folder in sorted(Path(project).glob("NumCalc/source_*")):
+        steps = sorted(int(d.name.split(".")[1]) for d in folder.glob("be.out/be.*") if d.name.split(".")[1].isdigit())
+        judged = {step: surface_spikes(folder, step, margin_db) for step in steps}
+        found[folder.name] = {step: result for step, result in judged.items() if result is not None}
+        found["spiked_steps"] += sum(bool(result["elements"]) for result in found[folder.name].values())
+    return found

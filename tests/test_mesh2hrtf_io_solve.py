@@ -213,13 +213,13 @@ def test_a_solve_depends_on_frequency_over_speed_of_sound_only(tmp_path):
     assert np.abs(np.diff(20 * np.log10(np.abs(spectra["c343"])), axis=-1)).max() > 0.5  # the two steps differ
 
 
-def test_a_boundary_element_far_louder_than_the_source_is_reported_as_a_spike(tmp_path):
+def test_a_boundary_element_far_louder_than_the_source_is_reported_as_a_spike(tmp_path, capsys):
     """NumCalc's pBoundary of one step (element id, real, imaginary) with the source on elements 3-4 of NC.inp's
     BOUNDARY block: an element 22 dB above the source's loudest is a spike, one 3 dB below is not; a step without
     pBoundary (restored from the store) is not judged."""
     from mesh2hrtf_io.surface_spikes import source_elements, surface_spikes
 
-    folder = tmp_path / "source_1"
+    folder = tmp_path / "NumCalc" / "source_1"
     (folder / "be.out" / "be.1").mkdir(parents=True)
     (folder / "NC.inp").write_text("BOUNDARY\n## Left ear\nELEM 3 TO 4 VELO 0.1 -1 0.0 -1\nRETU\n")
     assert source_elements((folder / "NC.inp").read_text()).tolist() == [3, 4]
@@ -230,3 +230,10 @@ def test_a_boundary_element_far_louder_than_the_source_is_reported_as_a_spike(tm
     assert spikes["elements"] == [2] and spikes["max_db_above_source"] == pytest.approx(22.0, abs=0.01)
     assert surface_spikes(folder, 1, margin_db=25.0)["elements"] == []
     assert surface_spikes(folder, 2) is None
+    # the same for a whole project from the command line
+    from mesh2hrtf_io.cli import main
+
+    assert main(["spikes", str(tmp_path)]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report["spiked_steps"] == 1 and report["source_1"]["1"]["elements"] == [2]
+    assert main(["spikes", str(tmp_path / "NumCalc")]) == 2  # not a project: named

@@ -189,11 +189,12 @@ def where_lines(rows: list[dict], regions: list[dict]) -> list[str]:
         if not table:
             continue
         worst = worst_regions(table)
-        parts = [f"the {r['region']} (median {r['median_mm']:.2f} mm, {r['over_1mm_percent']:.0f} % of its "
-                 f"{r['points']} scan points beyond 1 mm)" for r in worst]
-        lines.append(f"{row['subject']} {row['condition']} (ΔQE {row['delta_qe_pp']:+.2f} pp, ΔPE "
-                     f"{row['delta_pe_deg']:+.2f}°): farthest from the scan are {' and '.join(parts)}; the whole "
-                     f"scan's median is {row['distance_median_mm']:.2f} mm.")
+        # worded from the values as the CSV files keep them (3 decimals), so the text follows from the files
+        parts = [f"the {r['region']} (median {round(r['median_mm'], 3):.2f} mm, {round(r['over_1mm_percent'], 3):.0f} % "
+                 f"of its {r['points']} scan points beyond 1 mm)" for r in worst]
+        lines.append(f"{row['subject']} {row['condition']} (ΔQE {round(row['delta_qe_pp'], 3):+.2f} pp, ΔPE "
+                     f"{round(row['delta_pe_deg'], 3):+.2f}°): farthest from the scan are {' and '.join(parts)}; the "
+                     f"whole scan's median is {round(row['distance_median_mm'], 3):.2f} mm.")
     return lines
 
 

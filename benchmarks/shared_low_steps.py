@@ -3,7 +3,7 @@
     .venv/bin/python benchmarks/shared_low_steps.py [--evaluation evaluation/sonicom] [--steps 3 4 6]
 
 Below about 1 kHz the wavelength (0.4-2.3 m) is far larger than a pinna, and these steps are NumCalc's slowest
-on a graded head (15-35 min each here, about 40 % of a head's solve). For every subject whose committed evaluation
+on a graded head (9-20 min each here, 22-30 % of a head's NumCalc time in the committed step statuses). For every subject whose committed evaluation
 holds the unchanged head (``original``), each other solved condition's left-ear HRTFs get their lowest N steps
 replaced by the original's (referenced HRTFs, direction by direction), and QE/PE (baumgartner2014, S calibrated on
 the reference rebuilt at the same frequencies, right ear from the reference) are computed with and without the

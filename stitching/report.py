@@ -22,13 +22,13 @@ def validate_head(mesh: trimesh.Trimesh, pinna: trimesh.Trimesh | None = None, p
     region (faces within ``pinna_band_mm`` of it) and the distance check."""
     problems = mesh_problems(mesh.vertices, mesh.faces)
     edges = mesh.edges_unique_length
+    angles = min_angles_deg(mesh.vertices, mesh.faces)
     report = {
         "closed": bool(mesh.is_watertight), "manifold": not any("manifold" in p or "open" in p for p in problems),
         "problems": problems, "self_intersecting_faces": self_intersections(mesh),
         "volume_mm3": float(mesh.volume), "normals_outward": bool(mesh.volume > 0), "n_triangles": int(len(mesh.faces)),
         "n_vertices": int(len(mesh.vertices)),
-        "min_angle_deg": float(min_angles_deg(mesh.vertices, mesh.faces).min()),
-        "sliver_faces": int((min_angles_deg(mesh.vertices, mesh.faces) < SLIVER_ANGLE_DEG).sum()),
+        "min_angle_deg": float(angles.min()), "sliver_faces": int((angles < SLIVER_ANGLE_DEG).sum()),
         "edge_mm": {"median": float(np.median(edges)), "p95": float(np.percentile(edges, 95)), "max": float(edges.max())},
     }
     report["max_frequency_hz_6_per_wavelength"] = float(SPEED_OF_SOUND_M_S * 1000 / (ELEMENTS_PER_WAVELENGTH * edges.max()))

@@ -283,33 +283,36 @@ def figure7(rows: list[dict], path: str | os.PathLike) -> Path:
 def figure6(results: str | os.PathLike, subjects: list[str], conditions: dict[str, list[str]],
             path: str | os.PathLike) -> Path:
     """Per subject: the target scan coloured by its distance to the aligned PPM on the paper's scale (<= 1 mm
-    red, ~3.5 mm green, >= 5 mm blue), and the histogram of the distances of every condition with medians
-    (the paper's Figure 6)."""
+    red, ~3.5 mm green, >= 5 mm blue), the same on a 0-1.5 mm scale (where a fit that is within 1 mm nearly
+    everywhere still differs), and the histogram of the distances of every condition with medians (the paper's
+    Figure 6, plus the fine-scale column)."""
     import matplotlib  # noqa: PLC0415
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt  # noqa: PLC0415
     import trimesh  # noqa: PLC0415
 
-    from ppm.render import render_distance_map  # noqa: PLC0415
+    from ppm.render import FINE_SCALE_MM, PAPER_SCALE_MM, render_distance_map  # noqa: PLC0415
 
     results = Path(results)
-    fig, axes = plt.subplots(len(subjects), 2, figsize=(11, 3.3 * len(subjects)), squeeze=False,
-                             gridspec_kw={"width_ratios": [2.0, 1.0]})
+    fig, axes = plt.subplots(len(subjects), 3, figsize=(16, 3.3 * len(subjects)), squeeze=False,
+                             gridspec_kw={"width_ratios": [2.0, 2.0, 1.0]})
     with tempfile.TemporaryDirectory() as tmp:
         for row, subject in enumerate(subjects):
             data = {c: np.load(results / subject / "evaluation" / c / "distances.npz")
                     for c in conditions[subject]}
             target = trimesh.load(results / subject / "target" / "pinna_target.ply", process=False, force="mesh")
             forward = data["ppm"]["target_to_model"]
-            picture = Path(tmp) / f"{subject}.png"
-            if len(target.vertices) == len(forward):
-                render_distance_map(target.vertices, target.faces, forward, picture, f"{subject}: scan -> PPM")
-            else:  # the prepared target dropped outliers: show its points
-                render_distance_map(data["ppm"]["target_points_mm"], None, forward, picture, f"{subject}: scan -> PPM")
-            axes[row, 0].imshow(plt.imread(picture))
-            axes[row, 0].axis("off")
-            ax = axes[row, 1]
+            # the prepared target may have dropped outliers: then its points are shown
+            whole = len(target.vertices) == len(forward)
+            points, faces = (target.vertices, target.faces) if whole else (data["ppm"]["target_points_mm"], None)
+            for column, (scale, label) in enumerate(((PAPER_SCALE_MM, "paper's scale"), (FINE_SCALE_MM, "0-1.5 mm"))):
+                picture = Path(tmp) / f"{subject}_{column}.png"
+                render_distance_map(points, faces, forward, picture, f"{subject}: scan -> PPM, {label}",
+                                    scale_mm=scale)
+                axes[row, column].imshow(plt.imread(picture))
+                axes[row, column].axis("off")
+            ax = axes[row, 2]
             bins = np.linspace(0.0, 5.0, 51)
             for condition, values in data.items():
                 d = values["target_to_model"]
@@ -413,7 +416,7 @@ def write_html(path: str | os.PathLike, rows: list[dict], figure6_path: Path, fi
              + "</ul>",
              "<h2>Goals</h2><ul>" + "".join(f"<li>{html.escape(g)}</li>" for g in goals) + "</ul>",
              "<h2>Figure 7: predicted localisation</h2>", _image(figure7_path),
-             "<h2>Figure 6: scan to pinna distances</h2>", _image(figure6_path),
+             "<h2>Figure 6: scan to pinna distances (the paper's scale; the same on 0-1.5 mm)</h2>", _image(figure6_path),
              *_regions_html(rows, regions),
              "<h2>Summary</h2>", _table_html(rows, COLUMNS),
              f"<p>Configuration: {html.escape(' '.join(configfiles) or 'config/config.yaml')}. "

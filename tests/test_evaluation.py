@@ -277,3 +277,21 @@ def test_band_attribution_with_every_band_swapped_gives_the_conditions_own_diffe
     floor = figures["donors"]["reference"]["all bands"]
     assert -floor["delta_qe_pp"] > 0.9 * rows["original"]["delta_qe_pp"]
     assert -floor["delta_pe_deg"] > 0.9 * rows["original"]["delta_pe_deg"]
+
+
+def test_fine_distance_scale_shows_what_the_papers_scale_paints_red(tmp_path, sonicom):
+    """A fit within 1 mm everywhere is one red on the paper's scale (<= 1 mm red); the 0-1.5 mm scale of Figure 6's
+    middle column colours the same distances (viridis: green above red in the middle of its range)."""
+    from matplotlib.image import imread
+
+    from ppm.render import FINE_SCALE_MM, render_distance_map
+
+    scan = trimesh.load(sonicom / "P143" / "pinna_left_crop.ply", process=False, force="mesh")
+    distance = np.clip(np.random.default_rng(1).gamma(4.0, 0.15, len(scan.vertices)), 0.0, 0.99)
+    shares = {}
+    for name, scale in (("paper", (1.0, 5.0)), ("fine", FINE_SCALE_MM)):
+        picture = render_distance_map(scan.vertices, scan.faces, distance, tmp_path / f"{name}.png", scale_mm=scale)
+        rgb = imread(picture)[..., :3].reshape(-1, 3)
+        coloured = np.ptp(rgb, axis=1) > 0.08  # not the white/grey background or the text
+        shares[name] = float(np.mean(rgb[coloured, 1] > rgb[coloured, 0] + 0.08))
+    assert shares["paper"] < 0.02 and shares["fine"] > 0.3, shares

@@ -175,9 +175,14 @@ def region_rows(results: str | os.PathLike, subjects: list[str], conditions: dic
     return rows
 
 
+SAME_SURFACE_MM = 0.05
+"""A condition whose every region lies this close to the scan (p95, mm) has the scanned pinna itself (own_pinna)."""
+
+
 def where_lines(rows: list[dict], regions: list[dict]) -> list[str]:
     """For every condition that misses its goal: the two pinna regions farthest from the scan, against the whole
-    scan's median (the paper traced its misses to the fossa triangularis and the cymba conchae)."""
+    scan's median (the paper traced its misses to the fossa triangularis and the cymba conchae); a condition whose
+    pinna is the scanned one (``SAME_SURFACE_MM``) is said to miss for another reason than its shape."""
     from .pinna_regions import worst_regions  # noqa: PLC0415
 
     lines = []
@@ -188,13 +193,18 @@ def where_lines(rows: list[dict], regions: list[dict]) -> list[str]:
         table = [r for r in regions if r["subject"] == row["subject"] and r["condition"] == row["condition"]]
         if not table:
             continue
+        head = (f"{row['subject']} {row['condition']} (ΔQE {round(row['delta_qe_pp'], 3):+.2f} pp, ΔPE "
+                f"{round(row['delta_pe_deg'], 3):+.2f}°)")
+        if max(round(r["p95_mm"], 3) for r in table) < SAME_SURFACE_MM:
+            lines.append(f"{head}: its pinna is the scanned one (every region's p95 under {SAME_SURFACE_MM} mm), so "
+                         "its miss is not the pinna's shape.")
+            continue
         worst = worst_regions(table)
         # worded from the values as the CSV files keep them (3 decimals), so the text follows from the files
         parts = [f"the {r['region']} (median {round(r['median_mm'], 3):.2f} mm, {round(r['over_1mm_percent'], 3):.0f} % "
                  f"of its {r['points']} scan points beyond 1 mm)" for r in worst]
-        lines.append(f"{row['subject']} {row['condition']} (ΔQE {round(row['delta_qe_pp'], 3):+.2f} pp, ΔPE "
-                     f"{round(row['delta_pe_deg'], 3):+.2f}°): farthest from the scan are {' and '.join(parts)}; the "
-                     f"whole scan's median is {round(row['distance_median_mm'], 3):.2f} mm.")
+        lines.append(f"{head}: farthest from the scan are {' and '.join(parts)}; the whole scan's median is "
+                     f"{round(row['distance_median_mm'], 3):.2f} mm.")
     return lines
 
 

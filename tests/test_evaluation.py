@@ -226,7 +226,14 @@ def test_where_a_missed_goal_comes_from_names_the_farthest_regions():
                 "over_1mm_percent": share}
                for name, median, share in (("helix", 0.2, 1.0), ("cymba conchae", 1.19, 58.0),
                                            ("crus helicis", 0.4, 19.0), ("surroundings", 3.0, 90.0))]
-    lines = where_lines(rows, regions)
+    own = [{**r, "condition": "own_pinna", "median_mm": 0.0, "p95_mm": 0.023 if r["region"] == "surroundings" else 0.0,
+            "over_1mm_percent": 0.0} for r in regions]
+    rows.append({"subject": "S1", "condition": "own_pinna", "delta_qe_pp": 2.05, "delta_pe_deg": 2.03,
+                 "distance_median_mm": 0.0})
+    lines = where_lines(rows, regions + own)
+    assert lines[1] == ("S1 own_pinna (ΔQE +2.05 pp, ΔPE +2.03°): its pinna is the scanned one (every region's p95 "
+                        "under 0.05 mm), so its miss is not the pinna's shape.")
+    lines = where_lines(rows[:2], regions)
     assert len(lines) == 1 and lines[0].startswith("S1 ppm (ΔQE +6.20 pp, ΔPE +4.10°)")
     assert "the cymba conchae (median 1.19 mm, 58 % of its 100 scan points beyond 1 mm) and the crus helicis" in lines[0]
     assert "surroundings" not in lines[0]

@@ -2,7 +2,8 @@
 
     .venv/bin/python benchmarks/band_attribution.py [--evaluation evaluation/sonicom] [--subject P143]
 
-Base: the committed left-ear HRTFs of the subject's unchanged head solved here (``original``). Donors: the dataset's
+Base: the committed left-ear HRTFs of the subject's unchanged head solved here (``original``; where that is not
+solved yet, its own pinna cut out and put back, ``own_pinna``, which on P143 is 0.03 pp from it). Donors: the dataset's
 reference (its HRIRs' exact DFT at the evaluation frequencies) and every other committed condition (``ppm``,
 ``own_pinna``, ...). For each donor and band, the base keeps its own HRTFs except in that band, where its directional
 part is the donor's: level (dB) = base level - base DTF + donor DTF, DTF meaning the level minus its mean over the
@@ -33,6 +34,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 BAND_EDGES_HZ = (0.0, 4400.0, 6000.0, 8500.0, 10300.0, 13000.0, 18000.0, 24001.0)
 ALL = (0.0, 24001.0)
+BASES = ("original", "own_pinna")
 
 
 def left_spectra(sofa) -> np.ndarray:
@@ -83,29 +85,31 @@ def main() -> None:
 
     from mesh2hrtf_io.sparse_hrtf import sample_spectra
 
-    settings, reference_sofa, files = committed_subject(args.evaluation, args.subject)
-    base_sofa = sofar.read_sofa(str(files["original"]), verify=False)
+    settings, reference_sofa, files = committed_subject(args.evaluation, args.subject, needs=BASES)
+    # the subject's own pinna solved here: the unchanged head, else the own-pinna control (P143: 0.03 pp apart)
+    base_name = next(name for name in BASES if name in files)
+    base_sofa = sofar.read_sofa(str(files[base_name]), verify=False)
     frequencies = np.asarray(base_sofa.N, dtype=np.float64)
     base = left_spectra(base_sofa)
     reference = sofar.read_sofa(str(reference_sofa), verify=False)
     donors = {"reference": sample_spectra(reference.Data_IR[:, 0, :], float(np.squeeze(reference.Data_SamplingRate)),
                                           frequencies)}
     donors.update({name: left_spectra(sofar.read_sofa(str(path), verify=False))
-                   for name, path in files.items() if name != "original"})
+                   for name, path in files.items() if name != base_name})
     bands = list(zip(BAND_EDGES_HZ[:-1], BAND_EDGES_HZ[1:]))
 
     spectra = {"base": base}
     for donor, values in donors.items():
         for index, band in enumerate(bands + [ALL]):
             spectra[f"{donor}:{index}"] = hybrid(base, values, frequencies, band)
-    result = predictions(files["original"], spectra, reference_sofa, settings)
+    result = predictions(files[base_name], spectra, reference_sofa, settings)
     base_qe, base_pe = result["base"]
-    print(f"{args.subject}: base = original (solved here) QE {base_qe:.3f} %, PE {base_pe:.3f} deg; reference QE "
+    print(f"{args.subject}: base = {base_name} (solved here) QE {base_qe:.3f} %, PE {base_pe:.3f} deg; reference QE "
           f"{result['reference'][0]:.3f} %, PE {result['reference'][1]:.3f} deg")
-    figures = {"subject": args.subject, "base": {"qe_percent": round(base_qe, 3), "pe_deg": round(base_pe, 3)},
+    figures = {"subject": args.subject, "base_condition": base_name, "base": {"qe_percent": round(base_qe, 3), "pe_deg": round(base_pe, 3)},
                "band_edges_hz": list(BAND_EDGES_HZ[:-1]) + [24000.0], "donors": {}}
     for donor in donors:
-        print(f"  original with {donor}'s DTFs in one band: ΔQE (pp), ΔPE (deg) against the original")
+        print(f"  {base_name} with {donor}'s DTFs in one band: ΔQE (pp), ΔPE (deg) against {base_name} itself")
         rows = {}
         for index, band in enumerate(bands + [ALL]):
             qe, pe = result[f"{donor}:{index}"]

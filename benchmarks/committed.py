@@ -1,5 +1,5 @@
 """The committed evaluation files a benchmark reads: localisation settings, a subject's reference SOFA and its
-solved left-ear HRTF files by condition (``evaluation/sonicom/sofa``), with the unchanged head required."""
+solved left-ear HRTF files by condition (``evaluation/sonicom/sofa``), with the unchanged head (or another base) required."""
 from __future__ import annotations
 
 import argparse
@@ -9,17 +9,19 @@ ROOT = Path(__file__).resolve().parents[1]
 SONICOM = ROOT.parent / "shared" / "data" / "sonicom"
 
 
-def committed_subject(evaluation: Path, subject: str) -> tuple[dict, Path, dict[str, Path]]:
+def committed_subject(evaluation: Path, subject: str,
+                      needs: tuple[str, ...] = ("original",)) -> tuple[dict, Path, dict[str, Path]]:
     """(config localisation settings, the subject's reference SOFA, condition -> left-ear HRTF file); exits with
-    a message naming the folder when the subject's unchanged head (condition ``original``) is not there."""
+    a message naming the folder when none of the conditions ``needs`` (by default the unchanged head,
+    ``original``) is there."""
     import yaml
 
     from reporting.evaluation import left_hrtf_files
 
     settings = yaml.safe_load((ROOT / "config" / "config.yaml").read_text())["localisation"]
     files = left_hrtf_files(evaluation / "sofa", subject)
-    if "original" not in files:
-        raise SystemExit(f"{evaluation}/sofa: no solve of {subject}'s unchanged head (condition original)")
+    if not any(name in files for name in needs):
+        raise SystemExit(f"{evaluation}/sofa: no solve of {subject} as condition {' or '.join(needs)}")
     return settings, SONICOM / subject / settings["reference_sofa"], files
 
 

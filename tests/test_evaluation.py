@@ -286,6 +286,28 @@ def test_band_attribution_with_every_band_swapped_gives_the_conditions_own_diffe
     assert -floor["delta_pe_deg"] > 0.9 * rows["original"]["delta_pe_deg"]
 
 
+def test_band_attribution_takes_the_own_pinna_head_as_base_where_the_unchanged_one_is_not_solved(sonicom):
+    """On P039 (its own pinna put back solved, its unchanged head not yet: then the base is ``own_pinna``; once
+    ``original`` is committed it is the base): all of the reference's DTFs move the base by its whole floor and all
+    of the PPM's by the PPM's difference from the base, each within 0.1 pp / 0.1 deg of summary.csv."""
+    import subprocess
+    import sys
+
+    rows = {r["condition"]: r for r in read_summary_csv(COMMITTED / "summary.csv") if r["subject"] == "P039"}
+    if not {"own_pinna", "original"} & set(rows) or "ppm" not in rows:
+        pytest.skip("P039's own-pinna or unchanged head and its PPM head are not all committed")
+    result = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "band_attribution.py"), "--subject", "P039"],
+                            capture_output=True, text=True, check=True, cwd=ROOT)
+    figures = json.loads(result.stdout.strip().splitlines()[-1])
+    base = rows[figures["base_condition"]]
+    assert figures["base_condition"] == ("original" if "original" in rows else "own_pinna")
+    floor, ppm = figures["donors"]["reference"]["all bands"], figures["donors"]["ppm"]["all bands"]
+    assert -floor["delta_qe_pp"] == pytest.approx(base["delta_qe_pp"], abs=0.1)
+    assert -floor["delta_pe_deg"] == pytest.approx(base["delta_pe_deg"], abs=0.1)
+    assert ppm["delta_qe_pp"] == pytest.approx(rows["ppm"]["qe_percent"] - base["qe_percent"], abs=0.1)
+    assert ppm["delta_pe_deg"] == pytest.approx(rows["ppm"]["pe_deg"] - base["pe_deg"], abs=0.1)
+
+
 def test_fine_distance_scale_shows_what_the_papers_scale_paints_red(tmp_path, sonicom):
     """A fit within 1 mm everywhere is one red on the paper's scale (<= 1 mm red); the 0-1.5 mm scale of Figure 6's
     middle column colours the same distances (viridis: green above red in the middle of its range)."""

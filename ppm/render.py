@@ -5,6 +5,7 @@ the lateral view looks at the left pinna from +y.
 from __future__ import annotations
 
 import os
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -118,18 +119,26 @@ def render_range_sheet(model: PinnaModel, path: str | os.PathLike, columns: int 
     return path
 
 
-PAPER_SCALE_MM = (1.0, 5.0)
-"""The paper's distance colours (jet reversed): <= 1 mm red, ~3.5 mm green, >= 5 mm blue."""
-FINE_SCALE_MM = (0.0, 1.5)
-"""A scale for fits that lie within 1 mm nearly everywhere, where the paper's map is red all over (viridis)."""
+@dataclass(frozen=True)
+class DistanceScale:
+    """Colours of a distance map: ``low_mm``..``high_mm`` spread over the colour map ``cmap``, named ``label``."""
+    low_mm: float
+    high_mm: float
+    cmap: str
+    label: str
+
+
+PAPER_SCALE = DistanceScale(1.0, 5.0, "jet_r", "paper's scale")
+"""The paper's distance colours: <= 1 mm red, ~3.5 mm green, >= 5 mm blue."""
+FINE_SCALE = DistanceScale(0.0, 1.5, "viridis", "0-1.5 mm")
+"""For fits that lie within 1 mm nearly everywhere, where the paper's map is red all over."""
 
 
 def render_distance_map(mesh_vertices_mm: np.ndarray, faces: np.ndarray | None, distance_mm: np.ndarray,
                         path: str | os.PathLike, title: str = "", size_px: tuple[int, int] = (1500, 750),
-                        scale_mm: tuple[float, float] = PAPER_SCALE_MM) -> Path:
-    """PNG of a pinna coloured by distance (mm), on the paper's scale by default (``PAPER_SCALE_MM``, jet
-    reversed) or on another (``FINE_SCALE_MM``: viridis): lateral view (from +y) and a view from behind-above.
-    `faces` None: points."""
+                        scale: DistanceScale = PAPER_SCALE) -> Path:
+    """PNG of a pinna coloured by distance (mm) on ``scale`` (the paper's by default): lateral view (from +y)
+    and a view from behind-above. `faces` None: points."""
     pv = _pyvista()
     if faces is None:
         data = pv.PolyData(np.asarray(mesh_vertices_mm, np.float64))
@@ -140,8 +149,8 @@ def render_distance_map(mesh_vertices_mm: np.ndarray, faces: np.ndarray | None, 
     centre = np.asarray(mesh_vertices_mm).mean(axis=0)
     for column, eye in enumerate(([0.0, 1.0, 0.0], [-0.6, 0.6, 0.5])):
         plotter.subplot(0, column)
-        plotter.add_mesh(data, scalars="distance_mm", cmap="jet_r" if tuple(scale_mm) == PAPER_SCALE_MM else "viridis",
-                         clim=tuple(scale_mm), smooth_shading=True,
+        plotter.add_mesh(data, scalars="distance_mm", cmap=scale.cmap, clim=(scale.low_mm, scale.high_mm),
+                         smooth_shading=True,
                          point_size=4, render_points_as_spheres=faces is None,
                          scalar_bar_args={"title": "distance (mm)"} if column == 1 else None,
                          show_scalar_bar=column == 1)

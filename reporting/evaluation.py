@@ -302,7 +302,7 @@ def figure6(results: str | os.PathLike, subjects: list[str], conditions: dict[st
     import matplotlib.pyplot as plt  # noqa: PLC0415
     import trimesh  # noqa: PLC0415
 
-    from ppm.render import FINE_SCALE_MM, PAPER_SCALE_MM, render_distance_map  # noqa: PLC0415
+    from ppm.render import FINE_SCALE, PAPER_SCALE, render_distance_map  # noqa: PLC0415
 
     results = Path(results)
     fig, axes = plt.subplots(len(subjects), 3, figsize=(16, 3.3 * len(subjects)), squeeze=False,
@@ -316,10 +316,10 @@ def figure6(results: str | os.PathLike, subjects: list[str], conditions: dict[st
             # the prepared target may have dropped outliers: then its points are shown
             whole = len(target.vertices) == len(forward)
             points, faces = (target.vertices, target.faces) if whole else (data["ppm"]["target_points_mm"], None)
-            for column, (scale, label) in enumerate(((PAPER_SCALE_MM, "paper's scale"), (FINE_SCALE_MM, "0-1.5 mm"))):
+            for column, scale in enumerate((PAPER_SCALE, FINE_SCALE)):
                 picture = Path(tmp) / f"{subject}_{column}.png"
-                render_distance_map(points, faces, forward, picture, f"{subject}: scan -> PPM, {label}",
-                                    scale_mm=scale)
+                render_distance_map(points, faces, forward, picture, f"{subject}: scan -> PPM, {scale.label}",
+                                    scale=scale)
                 axes[row, column].imshow(plt.imread(picture))
                 axes[row, column].axis("off")
             ax = axes[row, 2]

@@ -313,13 +313,13 @@ def test_fine_distance_scale_shows_what_the_papers_scale_paints_red(tmp_path, so
     middle column colours the same distances (viridis: green above red in the middle of its range)."""
     from matplotlib.image import imread
 
-    from ppm.render import FINE_SCALE_MM, render_distance_map
+    from ppm.render import FINE_SCALE, PAPER_SCALE, render_distance_map
 
     scan = trimesh.load(sonicom / "P143" / "pinna_left_crop.ply", process=False, force="mesh")
     distance = np.clip(np.random.default_rng(1).gamma(4.0, 0.15, len(scan.vertices)), 0.0, 0.99)
     shares = {}
-    for name, scale in (("paper", (1.0, 5.0)), ("fine", FINE_SCALE_MM)):
-        picture = render_distance_map(scan.vertices, scan.faces, distance, tmp_path / f"{name}.png", scale_mm=scale)
+    for name, scale in (("paper", PAPER_SCALE), ("fine", FINE_SCALE)):
+        picture = render_distance_map(scan.vertices, scan.faces, distance, tmp_path / f"{name}.png", scale=scale)
         rgb = imread(picture)[..., :3].reshape(-1, 3)
         coloured = np.ptp(rgb, axis=1) > 0.08  # not the white/grey background or the text
         shares[name] = float(np.mean(rgb[coloured, 1] > rgb[coloured, 0] + 0.08))

@@ -232,7 +232,13 @@ def test_where_a_missed_goal_comes_from_names_the_farthest_regions():
                  "distance_median_mm": 0.0})
     lines = where_lines(rows, regions + own)
     assert lines[1] == ("S1 own_pinna (ΔQE +2.05 pp, ΔPE +2.03°): its pinna is the scanned one (every region's p95 "
-                        "under 0.05 mm), so its miss is not the pinna's shape.")
+                        "at most 0.023 mm, under 0.1 mm), so its miss is not the pinna's shape.")
+    # the seam moves a few scan points by hundredths of a millimetre (P039: p95 0.062 mm): still the scanned pinna;
+    # a region whose p95 reaches 0.1 mm is a different surface and is named
+    seam = [{**r, "p95_mm": 0.062} if r["region"] in ("surroundings", "tragus") else r for r in own]
+    assert "at most 0.062 mm" in where_lines(rows, regions + seam)[1]
+    moved = [{**r, "median_mm": 0.03, "p95_mm": 0.1} if r["region"] == "crus helicis" else r for r in own]
+    assert "farthest from the scan are the crus helicis (median 0.03 mm" in where_lines(rows, regions + moved)[1]
     lines = where_lines(rows[:2], regions)
     assert len(lines) == 1 and lines[0].startswith("S1 ppm (ΔQE +6.20 pp, ΔPE +4.10°)")
     assert "the cymba conchae (median 1.19 mm, 58 % of its 100 scan points beyond 1 mm) and the crus helicis" in lines[0]

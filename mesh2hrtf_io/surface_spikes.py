@@ -10,6 +10,7 @@ still reports convergence in such a case, so each solved step is checked here, f
 """
 from __future__ import annotations
 
+import json
 import os
 import re
 from pathlib import Path
@@ -57,13 +58,26 @@ def surface_spikes(source_folder: str | os.PathLike, step: int, margin_db: float
     return {"elements": spikes.tolist(), "max_db_above_source": round(float(above[others].max()), 2)}
 
 
+def _finished(source_folder: Path, step: int) -> bool:
+    """The runner marked the step solved and converged (``status.json``): its pBoundary is final. A step still
+    running, or rerun after a non-converged attempt, has a pBoundary being written or from the failed attempt."""
+    path = step_folder(source_folder, step) / "status.json"
+    try:
+        return bool(json.loads(path.read_text()).get("converged", False))
+    except (OSError, json.JSONDecodeError):
+        return False
+
+
 def project_spikes(project: str | os.PathLike, margin_db: float = SPIKE_MARGIN_DB) -> dict:
-    """Every solved step of every source of a project judged by :func:`surface_spikes` (steps restored from a
-    store have no pBoundary and are left out): {"source_N": {step: result}}, plus "spiked_steps"."""
-    found: dict = {"spiked_steps": 0}
+    """Every finished step of every source of a project judged by :func:`surface_spikes` (steps restored from a
+    store have no pBoundary and are left out): {"source_N": {step: result}}, plus "spiked_steps" and
+    "unfinished" (per source, steps with NumCalc output but no converged status: running or being retried)."""
+    found: dict = {"spiked_steps": 0, "unfinished": {}}
     for folder in sorted(Path(project).glob("NumCalc/source_*")):
         steps = sorted(int(d.name.split(".")[1]) for d in folder.glob("be.out/be.*") if d.name.split(".")[1].isdigit())
-        judged = {step: surface_spikes(folder, step, margin_db) for step in steps}
+        finished = [step for step in steps if _finished(folder, step)]
+        found["unfinished"][folder.name] = [step for step in steps if step not in finished]
+        judged = {step: surface_spikes(folder, step, margin_db) for step in finished}
         found[folder.name] = {step: result for step, result in judged.items() if result is not None}
         found["spiked_steps"] += sum(bool(result["elements"]) for result in found[folder.name].values())
     return found

@@ -216,7 +216,7 @@ def test_a_solve_depends_on_frequency_over_speed_of_sound_only(tmp_path):
 def test_a_boundary_element_far_louder_than_the_source_is_reported_as_a_spike(tmp_path, capsys):
     """NumCalc's pBoundary of one step (element id, real, imaginary) with the source on elements 3-4 of NC.inp's
     BOUNDARY block: an element 22 dB above the source's loudest is a spike, one 3 dB below is not; a step without
-    pBoundary (restored from the store) is not judged."""
+    pBoundary (restored from the store) is not judged, nor is one the runner has not marked converged."""
     from mesh2hrtf_io.surface_spikes import source_elements, surface_spikes
 
     folder = tmp_path / "NumCalc" / "source_1"
@@ -230,10 +230,19 @@ def test_a_boundary_element_far_louder_than_the_source_is_reported_as_a_spike(tm
     assert spikes["elements"] == [2] and spikes["max_db_above_source"] == pytest.approx(22.0, abs=0.01)
     assert surface_spikes(folder, 1, margin_db=25.0)["elements"] == []
     assert surface_spikes(folder, 2) is None
-    # the same for a whole project from the command line
+    # the same for a whole project from the command line: only steps the runner marked converged are judged (a
+    # step still running or being retried after a non-converged attempt has a pBoundary that is not final)
     from mesh2hrtf_io.cli import main
 
+    (folder / "be.out" / "be.2").mkdir()
+    (folder / "be.out" / "be.2" / "pBoundary").write_text((folder / "be.out" / "be.1" / "pBoundary").read_text())
+    (folder / "be.out" / "be.2" / "status.json").write_text('{"step": 2, "converged": false}')
+    assert main(["spikes", str(tmp_path)]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report["spiked_steps"] == 0 and report["unfinished"] == {"source_1": [1, 2]}
+    (folder / "be.out" / "be.1" / "status.json").write_text('{"step": 1, "converged": true}')
     assert main(["spikes", str(tmp_path)]) == 0
     report = json.loads(capsys.readouterr().out)
     assert report["spiked_steps"] == 1 and report["source_1"]["1"]["elements"] == [2]
+    assert report["unfinished"] == {"source_1": [2]}
     assert main(["spikes", str(tmp_path / "NumCalc")]) == 2  # not a project: named

@@ -194,6 +194,23 @@ def test_missing_or_crashing_numcalc_is_a_clear_error(tmp_path, monkeypatch):
     assert not (step_folder(source, 1) / "status.json").exists()
 
 
+def test_where_numcalc_cgs_stopped_is_read_from_its_output():
+    """NumCalc 1.2.4 prints "<iteration> <relative residual>" every 10 iterations and where CGS stops (after its
+    "CGS: err_ori" line; absolute errors on lines of their own); a step stopped by the iteration limit at or below
+    ACCEPTED_RESIDUAL is kept (benchmarks/numcalc_residual.py: 1e-6 left the far field within 3e-5 dB), above it not."""
+    from mesh2hrtf_io.numcalc import ACCEPTED_RESIDUAL, _close_enough, last_residual
+
+    stdout = ("Assembling\n0 12\n\nCGS: err_ori = 0.0316\n10 0.183697\n10 Abs Error:0.0058\n20 2.74954e-07\n"
+              "20 Abs Error:8.7e-09\n25 9.5e-08\n\nPost processing\n")
+    assert last_residual(stdout) == (25, 9.5e-08)
+    assert last_residual("Assembling\n0 12\n") is None  # no CGS output: nothing read from other numbers
+    limit = "not converged (maximum number of iterations reached)"
+    assert _close_enough({"problems": [limit], "relative_residual": ACCEPTED_RESIDUAL})
+    assert not _close_enough({"problems": [limit], "relative_residual": 8.4e-6})
+    assert not _close_enough({"problems": [limit]})  # residual not printed: rerun
+    assert not _close_enough({"problems": [limit, "too many integral points"], "relative_residual": 1e-8})
+
+
 def test_a_solve_depends_on_frequency_over_speed_of_sound_only(tmp_path):
     """A referenced HRTF solved at f with c equals the one solved at f * c' / c with c' (the Helmholtz problem and
     the free-field reference depend on k = 2 pi f / c alone): benchmarks/speed_of_sound.py relabels committed

@@ -134,28 +134,81 @@ def _log_problems(log_text: str) -> list[str]:
     return problems
 
 
+def _take_results(scratch: Path, source_folder: Path, step: int) -> None:
+    """Move a step solved in a scratch sibling (another cluster tree) into the source folder: its be.out/be.<step>
+    replaces the old one, its log becomes NC<step>-<step>.out; the scratch folder is removed."""
+    solved = step_folder(scratch, step)
+    if solved.is_dir():
+        target = step_folder(source_folder, step)
+        shutil.rmtree(target, ignore_errors=True)
+        target.parent.mkdir(parents=True, exist_ok=True)
+        shutil.move(str(solved), str(target))
+    log_file = scratch / f"NC{step}-{step}.out"
+    if log_file.is_file():
+        shutil.move(str(log_file), str(source_folder / f"NC{step}-{step}.out"))
+    shutil.rmtree(scratch, ignore_errors=True)
+
+
 def _close_enough(attempt: dict) -> bool:
     """An attempt whose only problem is the iteration limit, stopped at or below :data:`ACCEPTED_RESIDUAL`."""
     only_limit = len(attempt["problems"]) == 1 and attempt["problems"][0].startswith("not converged")
     return only_limit and attempt.get("relative_residual", float("inf")) <= ACCEPTED_RESIDUAL
 
 
+DEFAULT_TREE = "numcalc_default"
+"""The cluster tree of a retry: NumCalc's own (level-0 size 0 in NC.inp). The project's tuned tree
+(``mesh2hrtf_io.clusters``) halves a step's time and agrees with NumCalc's to 0.1 dB, but once let CGS diverge
+(P143's default-PPM head at 24 kHz: 250 and then 500 iterations ended with boundary elements 85 dB above the
+source); a second attempt with the same tree would repeat the same iteration."""
+_CLUSTER_LINE = re.compile(r"^(0 0 0 )(\S+)( 0 0 0)$", re.MULTILINE)
+
+
+def _attempt_plan(max_iterations: int) -> list[tuple[int, str]]:
+    """(iteration limit, cluster tree) of each attempt: the project's tree, then NumCalc's with twice the limit."""
+    return [(max_iterations, "project"), (2 * max_iterations, DEFAULT_TREE)]
+
+
+def _already_tried(previous: list[dict], iterations: int, tree: str) -> bool:
+    """An earlier run of this step (its status.json) made this attempt or a longer one with the same tree."""
+    return any(a.get("cluster_tree", "project") == tree and a["max_iterations"] >= iterations for a in previous)
+
+
+def _default_tree_folder(source_folder: Path) -> Path:
+    """A sibling of the source folder (so NC.inp's ../../ paths still hold) whose NC.inp asks NumCalc for its own
+    cluster tree; its results are moved into the source folder's be.out."""
+    scratch = source_folder.with_name(source_folder.name + "." + DEFAULT_TREE)
+    shutil.rmtree(scratch, ignore_errors=True)
+    scratch.mkdir()
+    nc_inp = (source_folder / "NC.inp").read_text()
+    if not _CLUSTER_LINE.search(nc_inp):
+        raise NumCalcError(f"{source_folder / 'NC.inp'}: no Main Parameters II line to reset the cluster tree in")
+    (scratch / "NC.inp").write_text(_CLUSTER_LINE.sub(r"\g<1>0.0000e+00\g<3>", nc_inp, count=1))
+    return scratch
+
+
 def run_step(numcalc: Path, source_folder: str | os.PathLike, step: int, expected_nodes: int,
              max_iterations: int = DEFAULT_MAX_ITERATIONS, timeout_s: float | None = None) -> dict:
-    """Solve one frequency step (1-based) unless it is already done; returns its status."""
+    """Solve one frequency step (1-based) unless it is already done; returns its status. Attempts an earlier
+    run recorded as not converged are not repeated (see :func:`_attempt_plan`)."""
     source_folder = Path(source_folder)
     if step_done(source_folder, step, expected_nodes):
         return step_status(source_folder, step) or {"step": step, "converged": True, "resumed": True}
-    attempts = []
-    for iterations in (max_iterations, 2 * max_iterations):
+    previous = (step_status(source_folder, step) or {}).get("attempts", [])
+    attempts = list(previous)
+    for iterations, tree in _attempt_plan(max_iterations):
+        if _already_tried(previous, iterations, tree):
+            continue
+        folder = source_folder if tree == "project" else _default_tree_folder(source_folder)
         start = time.perf_counter()
         try:
             result = subprocess.run([str(numcalc), "-istart", str(step), "-iend", str(step), "-nitermax",
-                                     str(iterations)], cwd=source_folder, capture_output=True, text=True,
+                                     str(iterations)], cwd=folder, capture_output=True, text=True,
                                     timeout=timeout_s)
         except (OSError, subprocess.TimeoutExpired) as exc:
-            raise NumCalcError(f"{source_folder}: NumCalc step {step} could not run ({exc})") from exc
+            raise NumCalcError(f"{folder}: NumCalc step {step} could not run ({exc})") from exc
         seconds = time.perf_counter() - start
+        if folder != source_folder:
+            _take_results(folder, source_folder, step)
         log_file = source_folder / f"NC{step}-{step}.out"
         log_text = log_file.read_text(errors="replace") if log_file.is_file() else ""
         problems = _log_problems(log_text)
@@ -165,14 +218,17 @@ def run_step(numcalc: Path, source_folder: str | os.PathLike, step: int, expecte
                                f"{'complete' if complete else 'missing or incomplete'}); log {log_file}:\n"
                                f"{(log_text or result.stdout + result.stderr)[-1500:]}")
         stopped = last_residual(result.stdout)
-        attempt = {"max_iterations": iterations, "seconds": round(seconds, 2), "problems": problems}
+        attempt = {"max_iterations": iterations, "cluster_tree": tree, "seconds": round(seconds, 2),
+                   "problems": problems}
         if stopped is not None:
             attempt["iterations"], attempt["relative_residual"] = stopped[0], stopped[1]
         attempts.append(attempt)
         if not problems or _close_enough(attempt):
             break
-        log.warning("%s step %d: %s (relative residual %s); rerunning with %d iterations", source_folder.name, step,
-                    "; ".join(problems), attempt.get("relative_residual", "not printed"), 2 * iterations)
+        log.warning("%s step %d: %s (relative residual %s, %s cluster tree); trying again", source_folder.name,
+                    step, "; ".join(problems), attempt.get("relative_residual", "not printed"), tree)
+    if not attempts:
+        raise NumCalcError(f"{source_folder}: step {step} has no attempt left to make (status.json records them all)")
     status = {"step": step, "solver": "NumCalc", "converged": not attempts[-1]["problems"],
               "problems": attempts[-1]["problems"], "attempts": attempts}
     if _close_enough(attempts[-1]):

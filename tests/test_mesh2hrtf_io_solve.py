@@ -194,6 +194,56 @@ def test_missing_or_crashing_numcalc_is_a_clear_error(tmp_path, monkeypatch):
     assert not (step_folder(source, 1) / "status.json").exists()
 
 
+def test_a_step_that_diverges_with_the_tuned_cluster_tree_is_solved_with_numcalcs_own(tmp_path):
+    """A stand-in NumCalc (the real one diverges only on a full graded head at 24 kHz, an hour per attempt) that
+    fails to converge whenever NC.inp sets a level-0 cluster size: the runner's second attempt asks for NumCalc's
+    own tree in a sibling folder and takes its result; a later run does not repeat attempts a status records."""
+    import sys
+    from pathlib import Path
+
+    from mesh2hrtf_io.numcalc import DEFAULT_TREE
+
+    _sphere_project(tmp_path / "p", frequencies=[1000.0])
+    source = tmp_path / "p" / "NumCalc" / "source_1"
+    nc_inp = (source / "NC.inp").read_text()
+    (source / "NC.inp").write_text(nc_inp.replace("0 0 0 0.0000e+00 0 0 0", "0 0 0 3.4200e-02 0 0 0"))
+    assert "3.4200e-02" in (source / "NC.inp").read_text()
+    calls = tmp_path / "calls.txt"
+    fake = tmp_path / "NumCalc"
+    fake.write_text(f"""#!{sys.executable}
+import sys
+from pathlib import Path
+import numpy as np
+sys.path.insert(0, {str(Path(__file__).resolve().parents[1])!r})
+from mesh2hrtf_io.results import write_eval_grid_pressure
+step, limit = int(sys.argv[2]), sys.argv[6]
+tuned = "3.4200e-02" in Path("NC.inp").read_text()
+with open({str(calls)!r}, "a") as calls:
+    calls.write(f"{{Path.cwd().name}} {{limit}}\\n")
+write_eval_grid_pressure(".", step, np.arange(162), np.full(162, 1.0 + 0.5j))
+log = "Warning: Maximum number of iterations is reached!" if tuned else "done"
+Path(f"NC{{step}}-{{step}}.out").write_text(log + "\\n")
+print("CGS: err_ori = 1.0")
+print(f"{{limit}} {{0.9 if tuned else 5e-10}}")
+""")
+    fake.chmod(0o755)
+    status = run_step(fake, source, 1, 162, max_iterations=30)
+    assert status["converged"] and [a["cluster_tree"] for a in status["attempts"]] == ["project", DEFAULT_TREE]
+    assert status["attempts"][0]["relative_residual"] == 0.9 and status["attempts"][1]["max_iterations"] == 60
+    assert calls.read_text().split("\n")[:2] == ["source_1 30", f"source_1.{DEFAULT_TREE} 60"]
+    assert (source / "NC1-1.out").read_text() == "done\n" and not (source.parent / f"source_1.{DEFAULT_TREE}").exists()
+    assert read_eval_grid_pressure(source, 1, 162)[0] == 1.0 + 0.5j
+    # a step whose recorded attempts all failed is not tried again with the same tree and limit
+    failed = {"step": 1, "converged": False, "problems": ["not converged (maximum number of iterations reached)"],
+              "attempts": [{"max_iterations": 30, "seconds": 1.0, "problems": ["not converged"]},
+                           {"max_iterations": 60, "seconds": 1.0, "problems": ["not converged"]}]}
+    (step_folder(source, 1) / "status.json").write_text(json.dumps(failed))
+    calls.write_text("")
+    status = run_step(fake, source, 1, 162, max_iterations=30)
+    assert status["converged"] and calls.read_text() == f"source_1.{DEFAULT_TREE} 60\n"
+    assert len(status["attempts"]) == 3
+
+
 def test_where_numcalc_cgs_stopped_is_read_from_its_output():
     """NumCalc 1.2.4 prints "<iteration> <relative residual>" every 10 iterations and where CGS stops (after its
     "CGS: err_ori" line; absolute errors on lines of their own); a step stopped by the iteration limit at or below

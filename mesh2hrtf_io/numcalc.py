@@ -176,7 +176,7 @@ def _already_tried(previous: list[dict], iterations: int, tree: str) -> bool:
 def _default_tree_folder(source_folder: Path) -> Path:
     """A sibling of the source folder (so NC.inp's ../../ paths still hold) whose NC.inp asks NumCalc for its own
     cluster tree; its results are moved into the source folder's be.out."""
-    scratch = source_folder.with_name(source_folder.name + "." + DEFAULT_TREE)
+    scratch = source_folder.with_name(f"{DEFAULT_TREE}_{source_folder.name}")
     shutil.rmtree(scratch, ignore_errors=True)
     scratch.mkdir()
     nc_inp = (source_folder / "NC.inp").read_text()

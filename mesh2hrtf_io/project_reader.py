@@ -119,7 +119,8 @@ def read_project(folder: str | os.PathLike) -> Project:
     for name in sorted(parameters["evaluationGrids"]):
         grid_nodes = _read_table(folder / "EvaluationGrids" / name / "Nodes.txt", 4)
         grids.append(GridData(name, grid_nodes[:, 0].astype(np.int64), grid_nodes[:, 1:]))
-    source_dirs = sorted((folder / "NumCalc").glob("source_*"), key=lambda p: int(p.name.split("_")[1]))
+    source_dirs = sorted((d for d in (folder / "NumCalc").glob("source_*") if d.name.split("_", 1)[1].isdigit()),
+                         key=lambda p: int(p.name.split("_")[1]))  # source_<n> only, not scratch folders beside them
     if not source_dirs:
         raise Mesh2HrtfIoError(f"{folder}/NumCalc: no source_N folders")
     return Project(folder, parameters, nodes[:, 1:], elements[:, 1:4].astype(np.int64), tuple(grids),

@@ -73,7 +73,7 @@ def project_spikes(project: str | os.PathLike, margin_db: float = SPIKE_MARGIN_D
     store have no pBoundary and are left out): {"source_N": {step: result}}, plus "spiked_steps" and
     "unfinished" (per source, steps with NumCalc output but no converged status: running or being retried)."""
     found: dict = {"spiked_steps": 0, "unfinished": {}}
-    for folder in sorted(Path(project).glob("NumCalc/source_*")):
+    for folder in sorted(d for d in Path(project).glob("NumCalc/source_*") if d.name.split("_", 1)[1].isdigit()):
         steps = sorted(int(d.name.split(".")[1]) for d in folder.glob("be.out/be.*") if d.name.split(".")[1].isdigit())
         finished = [step for step in steps if _finished(folder, step)]
         found["unfinished"][folder.name] = [step for step in steps if step not in finished]

@@ -230,8 +230,11 @@ print(f"{{limit}} {{0.9 if tuned else 5e-10}}")
     status = run_step(fake, source, 1, 162, max_iterations=30)
     assert status["converged"] and [a["cluster_tree"] for a in status["attempts"]] == ["project", DEFAULT_TREE]
     assert status["attempts"][0]["relative_residual"] == 0.9 and status["attempts"][1]["max_iterations"] == 60
-    assert calls.read_text().split("\n")[:2] == ["source_1 30", f"source_1.{DEFAULT_TREE} 60"]
-    assert (source / "NC1-1.out").read_text() == "done\n" and not (source.parent / f"source_1.{DEFAULT_TREE}").exists()
+    assert calls.read_text().split("\n")[:2] == ["source_1 30", f"{DEFAULT_TREE}_source_1 60"]
+    assert (source / "NC1-1.out").read_text() == "done\n" and not (source.parent / f"{DEFAULT_TREE}_source_1").exists()
+    # a scratch folder left beside the sources (an interrupted attempt) is not read as a source
+    (source.parent / "source_1.old").mkdir()
+    assert [s.folder.name for s in read_project(tmp_path / "p").sources] == ["source_1", "source_2"]
     assert read_eval_grid_pressure(source, 1, 162)[0] == 1.0 + 0.5j
     # a step whose recorded attempts all failed is not tried again with the same tree and limit
     failed = {"step": 1, "converged": False, "problems": ["not converged (maximum number of iterations reached)"],
@@ -240,7 +243,7 @@ print(f"{{limit}} {{0.9 if tuned else 5e-10}}")
     (step_folder(source, 1) / "status.json").write_text(json.dumps(failed))
     calls.write_text("")
     status = run_step(fake, source, 1, 162, max_iterations=30)
-    assert status["converged"] and calls.read_text() == f"source_1.{DEFAULT_TREE} 60\n"
+    assert status["converged"] and calls.read_text() == f"{DEFAULT_TREE}_source_1 60\n"
     assert len(status["attempts"]) == 3
 
 

@@ -86,6 +86,10 @@ def test_rows_carry_deltas_against_the_reference_and_goals_are_judged(tmp_path):
     lines = goal_lines(rows)
     assert lines[0].startswith("S1 ppm") and lines[0].endswith("MISSED")  # ΔPE 3.0 > 2
     assert lines[1].startswith("S1 own_pinna") and lines[1].endswith("met")
+    posed = {**rows[1], "condition": "default_ppm", "qe_percent": rows[1]["qe_percent"] + 2.5,
+             "pe_deg": rows[1]["pe_deg"] + 0.75, "delta_qe_pp": 4.0, "delta_pe_deg": 3.75}
+    assert goal_lines(rows + [posed])[-1] == ("S1 default_ppm (no goal: what the alignment buys): ΔQE +4.00 pp, "
+                                              "ΔPE +3.75°; the aligned PPM takes 2.50 pp of QE and 0.75° of PE off it")
     write_summary_csv(tmp_path / "summary.csv", rows)
     back = read_summary_csv(tmp_path / "summary.csv")
     assert back[1]["delta_pe_deg"] == pytest.approx(3.0) and back[0]["distance_median_mm"] is None

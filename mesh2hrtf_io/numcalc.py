@@ -134,11 +134,12 @@ def _log_problems(log_text: str) -> list[str]:
     return problems
 
 
-def _take_results(scratch: Path, source_folder: Path, step: int) -> None:
+def _take_results(scratch: Path, source_folder: Path, step: int, results: bool = True) -> None:
     """Move a step solved in a scratch sibling (another cluster tree) into the source folder: its be.out/be.<step>
-    replaces the old one, its log becomes NC<step>-<step>.out; the scratch folder is removed."""
+    replaces the old one (only with ``results``: NumCalc exited cleanly; else the recorded attempts stay), its log
+    becomes NC<step>-<step>.out; the scratch folder is removed."""
     solved = step_folder(scratch, step)
-    if solved.is_dir():
+    if results and solved.is_dir():
         target = step_folder(source_folder, step)
         shutil.rmtree(target, ignore_errors=True)
         target.parent.mkdir(parents=True, exist_ok=True)
@@ -208,7 +209,7 @@ def run_step(numcalc: Path, source_folder: str | os.PathLike, step: int, expecte
             raise NumCalcError(f"{folder}: NumCalc step {step} could not run ({exc})") from exc
         seconds = time.perf_counter() - start
         if folder != source_folder:
-            _take_results(folder, source_folder, step)
+            _take_results(folder, source_folder, step, results=result.returncode == 0)
         log_file = source_folder / f"NC{step}-{step}.out"
         log_text = log_file.read_text(errors="replace") if log_file.is_file() else ""
         problems = _log_problems(log_text)
@@ -225,6 +226,10 @@ def run_step(numcalc: Path, source_folder: str | os.PathLike, step: int, expecte
         attempts.append(attempt)
         if not problems or _close_enough(attempt):
             break
+        # recorded before the next attempt: if that one is killed (memory, wall-clock), a rerun starts from it
+        write_text_atomic(step_folder(source_folder, step) / "status.json", json.dumps(
+            {"step": step, "solver": "NumCalc", "converged": False, "problems": problems, "attempts": attempts},
+            indent=2) + "\n")
         log.warning("%s step %d: %s (relative residual %s, %s cluster tree); trying again", source_folder.name,
                     step, "; ".join(problems), attempt.get("relative_residual", "not printed"), tree)
     if not attempts:

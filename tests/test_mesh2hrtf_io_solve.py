@@ -245,6 +245,17 @@ print(f"{{limit}} {{0.9 if tuned else 5e-10}}")
     status = run_step(fake, source, 1, 162, max_iterations=30)
     assert status["converged"] and calls.read_text() == f"{DEFAULT_TREE}_source_1 60\n"
     assert len(status["attempts"]) == 3
+    # the failed first attempt is on record before the second starts: a second attempt killed by the scheduler
+    # (NumCalc's own tree needs more memory) is followed by the second attempt alone
+    import shutil
+
+    shutil.rmtree(step_folder(source, 1))
+    calls.write_text("")
+    fake.write_text(fake.read_text().replace('log = "Warning', 'import os\nif not tuned: os.kill(os.getpid(), 9)\nlog = "Warning'))
+    with pytest.raises(NumCalcError, match="exit -9"):
+        run_step(fake, source, 1, 162, max_iterations=30)
+    recorded = json.loads((step_folder(source, 1) / "status.json").read_text())
+    assert not recorded["converged"] and [a["cluster_tree"] for a in recorded["attempts"]] == ["project"]
 
 
 def test_where_numcalc_cgs_stopped_is_read_from_its_output():

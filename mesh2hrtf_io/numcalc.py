@@ -24,7 +24,8 @@ from pathlib import Path
 from ppm.atomic import write_text_atomic
 
 from .errors import Mesh2HrtfIoError
-from .results import step_folder, step_is_complete
+from .project import MAIN_PARAMETERS_II, main_parameters_ii
+from .results import step_folder, step_is_complete, step_status
 from .surface_spikes import surface_spikes
 
 log = logging.getLogger(__name__)
@@ -101,16 +102,6 @@ def estimate_memory(numcalc: Path, source_folder: str | os.PathLike) -> list[Ste
     return estimates
 
 
-def step_status(source_folder: str | os.PathLike, step: int) -> dict | None:
-    path = step_folder(source_folder, step) / "status.json"
-    if not path.is_file():
-        return None
-    try:
-        return json.loads(path.read_text())
-    except json.JSONDecodeError:
-        return None
-
-
 def step_done(source_folder: str | os.PathLike, step: int, expected_nodes: int) -> bool:
     """A complete result that is not marked as non-converged."""
     status = step_status(source_folder, step)
@@ -161,7 +152,6 @@ DEFAULT_TREE = "numcalc_default"
 (``mesh2hrtf_io.clusters``) halves a step's time and agrees with NumCalc's to 0.1 dB, but once let CGS diverge
 (P143's default-PPM head at 24 kHz: 250 and then 500 iterations ended with boundary elements 85 dB above the
 source); a second attempt with the same tree would repeat the same iteration."""
-_CLUSTER_LINE = re.compile(r"^(0 0 0 )(\S+)( 0 0 0)$", re.MULTILINE)
 
 
 def _attempt_plan(max_iterations: int) -> list[tuple[int, str]]:
@@ -180,11 +170,23 @@ def _default_tree_folder(source_folder: Path) -> Path:
     scratch = source_folder.with_name(f"{DEFAULT_TREE}_{source_folder.name}")
     shutil.rmtree(scratch, ignore_errors=True)
     scratch.mkdir()
-    nc_inp = (source_folder / "NC.inp").read_text()
-    if not _CLUSTER_LINE.search(nc_inp):
-        raise NumCalcError(f"{source_folder / 'NC.inp'}: no Main Parameters II line to reset the cluster tree in")
-    (scratch / "NC.inp").write_text(_CLUSTER_LINE.sub(r"\g<1>0.0000e+00\g<3>", nc_inp, count=1))
+    lines = (source_folder / "NC.inp").read_text().split("\n")
+    if MAIN_PARAMETERS_II not in lines[:-1]:
+        raise NumCalcError(f"{source_folder / 'NC.inp'}: no {MAIN_PARAMETERS_II!r} line to reset the cluster tree "
+                           "under; export the project again (m2h export)")
+    lines[lines.index(MAIN_PARAMETERS_II) + 1] = main_parameters_ii(0.0)
+    (scratch / "NC.inp").write_text("\n".join(lines))
     return scratch
+
+
+def _status(step: int, attempts: list[dict]) -> dict:
+    """A step's status from its attempts so far: converged when the last one had no problem."""
+    return {"step": step, "solver": "NumCalc", "converged": not attempts[-1]["problems"],
+            "problems": attempts[-1]["problems"], "attempts": attempts}
+
+
+def _write_status(source_folder: Path, step: int, status: dict) -> None:
+    write_text_atomic(step_folder(source_folder, step) / "status.json", json.dumps(status, indent=2) + "\n")
 
 
 def run_step(numcalc: Path, source_folder: str | os.PathLike, step: int, expected_nodes: int,
@@ -227,15 +229,10 @@ def run_step(numcalc: Path, source_folder: str | os.PathLike, step: int, expecte
         if not problems or _close_enough(attempt):
             break
         # recorded before the next attempt: if that one is killed (memory, wall-clock), a rerun starts from it
-        write_text_atomic(step_folder(source_folder, step) / "status.json", json.dumps(
-            {"step": step, "solver": "NumCalc", "converged": False, "problems": problems, "attempts": attempts},
-            indent=2) + "\n")
+        _write_status(source_folder, step, _status(step, attempts))
         log.warning("%s step %d: %s (relative residual %s, %s cluster tree); trying again", source_folder.name,
                     step, "; ".join(problems), attempt.get("relative_residual", "not printed"), tree)
-    if not attempts:
-        raise NumCalcError(f"{source_folder}: step {step} has no attempt left to make (status.json records them all)")
-    status = {"step": step, "solver": "NumCalc", "converged": not attempts[-1]["problems"],
-              "problems": attempts[-1]["problems"], "attempts": attempts}
+    status = _status(step, attempts)
     if _close_enough(attempts[-1]):
         status.update(converged=True, accepted=f"stopped at relative residual {attempts[-1]['relative_residual']:.2e} "
                       f"(NumCalc's target {NUMCALC_TOLERANCE:g}; kept at or below {ACCEPTED_RESIDUAL:g})")
@@ -248,7 +245,7 @@ def run_step(numcalc: Path, source_folder: str | os.PathLike, step: int, expecte
                         "numerical spikes, e.g. on sliver triangles; remesh the head (its far field may be off)",
                         source_folder, step, len(spikes["elements"]), spikes["max_db_above_source"],
                         spikes["elements"][:10])
-    write_text_atomic(step_folder(source_folder, step) / "status.json", json.dumps(status, indent=2) + "\n")
+    _write_status(source_folder, step, status)
     if not status["converged"]:
         raise NumCalcError(f"{source_folder}: step {step} {'; '.join(status['problems'])} after "
                            f"{len(attempts)} attempts; refine the mesh or check it (see NC{step}-{step}.out)")

@@ -66,6 +66,14 @@ def _check_frequencies(frequencies_hz) -> np.ndarray:
     return f
 
 
+MAIN_PARAMETERS_II = "## 2. Main Parameters II"
+
+
+def main_parameters_ii(cluster_size_m: float) -> str:
+    """NC.inp's Main Parameters II line: the level-0 cluster size of the multilevel FMM (m; 0 = NumCalc's own)."""
+    return f"0 0 0 {cluster_size_m:.4e} 0 0 0"
+
+
 def nc_inp_text(title: str, frequencies_hz: np.ndarray, n_elements: int, n_nodes: int, mesh_paths: list[str],
                 ear_range: tuple[int, int], ear_label: str, speed_of_sound_m_s: float, density_kg_m3: float,
                 method: int = 4, cluster_size_m: float = 0.0) -> str:
@@ -78,7 +86,7 @@ def nc_inp_text(title: str, frequencies_hz: np.ndarray, n_elements: int, n_nodes
              f"0 {len(frequencies_hz) + 1}", "0.000000 0.000000e+00 0.0"]
     lines += [f"{(i + 1) * 1e-6:.6f} {f / 1e4:.6f}e+04 0.0" for i, f in enumerate(frequencies_hz)]
     lines += ["##", "## 1. Main Parameters I", f"2 {n_elements} {n_nodes} 0 0 2 1 {method} 0",
-              "##", "## 2. Main Parameters II", f"0 0 0 {cluster_size_m:.4e} 0 0 0",
+              "##", MAIN_PARAMETERS_II, main_parameters_ii(cluster_size_m),
               "##", "## 3. Main Parameters III", "0 0 0 0",
               "##", "## 4. Main Parameters IV",
               f"{speed_of_sound_m_s:g} {density_kg_m3:.4e} 1.0 0.0e+00 0.0 e+00 0.0e+00 0.0e+00", "##", "NODES"]

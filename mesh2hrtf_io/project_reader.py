@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import Mesh2HrtfIoError
+from .results import source_folders
 
 
 @dataclasses.dataclass(frozen=True)
@@ -119,8 +120,7 @@ def read_project(folder: str | os.PathLike) -> Project:
     for name in sorted(parameters["evaluationGrids"]):
         grid_nodes = _read_table(folder / "EvaluationGrids" / name / "Nodes.txt", 4)
         grids.append(GridData(name, grid_nodes[:, 0].astype(np.int64), grid_nodes[:, 1:]))
-    source_dirs = sorted((d for d in (folder / "NumCalc").glob("source_*") if d.name.split("_", 1)[1].isdigit()),
-                         key=lambda p: int(p.name.split("_")[1]))  # source_<n> only, not scratch folders beside them
+    source_dirs = source_folders(folder / "NumCalc")
     if not source_dirs:
         raise Mesh2HrtfIoError(f"{folder}/NumCalc: no source_N folders")
     return Project(folder, parameters, nodes[:, 1:], elements[:, 1:4].astype(np.int64), tuple(grids),

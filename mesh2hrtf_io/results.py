@@ -7,6 +7,7 @@ one collector serves both.
 """
 from __future__ import annotations
 
+import json
 import os
 from pathlib import Path
 
@@ -22,6 +23,23 @@ RESULT_FILE = "pEvalGrid"
 def step_folder(source_folder: str | os.PathLike, step: int) -> Path:
     """``be.out/be.<step>`` (1-based steps, as NumCalc numbers them)."""
     return Path(source_folder) / "be.out" / f"be.{step}"
+
+
+def source_folders(numcalc_folder: str | os.PathLike) -> list[Path]:
+    """A project's ``NumCalc/source_<n>`` folders in source order; scratch folders beside them are not sources."""
+    found = [d for d in Path(numcalc_folder).glob("source_*") if d.name.split("_", 1)[1].isdigit()]
+    return sorted(found, key=lambda d: int(d.name.split("_", 1)[1]))
+
+
+def step_status(source_folder: str | os.PathLike, step: int) -> dict | None:
+    """The solver's ``status.json`` of a step (attempts, convergence), None when there is none or it is corrupt."""
+    path = step_folder(source_folder, step) / "status.json"
+    if not path.is_file():
+        return None
+    try:
+        return json.loads(path.read_text())
+    except json.JSONDecodeError:
+        return None
 
 
 def write_eval_grid_pressure(source_folder: str | os.PathLike, step: int, node_ids: np.ndarray,

@@ -10,14 +10,13 @@ still reports convergence in such a case, so each solved step is checked here, f
 """
 from __future__ import annotations
 
-import json
 import os
 import re
 from pathlib import Path
 
 import numpy as np
 
-from .results import step_folder
+from .results import source_folders, step_folder, step_status
 
 SPIKE_MARGIN_DB = 6.0  # an element this much above the source's loudest element is a spike
 BOUNDARY_FILE = "pBoundary"
@@ -61,11 +60,7 @@ def surface_spikes(source_folder: str | os.PathLike, step: int, margin_db: float
 def _finished(source_folder: Path, step: int) -> bool:
     """The runner marked the step solved and converged (``status.json``): its pBoundary is final. A step still
     running, or rerun after a non-converged attempt, has a pBoundary being written or from the failed attempt."""
-    path = step_folder(source_folder, step) / "status.json"
-    try:
-        return bool(json.loads(path.read_text()).get("converged", False))
-    except (OSError, json.JSONDecodeError):
-        return False
+    return bool((step_status(source_folder, step) or {}).get("converged", False))
 
 
 def project_spikes(project: str | os.PathLike, margin_db: float = SPIKE_MARGIN_DB) -> dict:
@@ -73,7 +68,7 @@ def project_spikes(project: str | os.PathLike, margin_db: float = SPIKE_MARGIN_D
     store have no pBoundary and are left out): {"source_N": {step: result}}, plus "spiked_steps" and
     "unfinished" (per source, steps with NumCalc output but no converged status: running or being retried)."""
     found: dict = {"spiked_steps": 0, "unfinished": {}}
-    for folder in sorted(d for d in Path(project).glob("NumCalc/source_*") if d.name.split("_", 1)[1].isdigit()):
+    for folder in source_folders(Path(project) / "NumCalc"):
         steps = sorted(int(d.name.split(".")[1]) for d in folder.glob("be.out/be.*") if d.name.split(".")[1].isdigit())
         finished = [step for step in steps if _finished(folder, step)]
         found["unfinished"][folder.name] = [step for step in steps if step not in finished]

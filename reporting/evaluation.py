@@ -141,7 +141,7 @@ def _within(goal: tuple[float, float], delta_qe_pp: float, delta_pe_deg: float) 
     return abs(delta_qe_pp) <= goal[0] and abs(delta_pe_deg) <= goal[1]
 
 
-def _alignment_gain(default: dict, rows: list[dict]) -> list[str]:
+def _alignment_gain(default: dict, rows: list[dict]) -> str:
     """The default-PPM control (no goal of its own): how much QE and PE the fit takes off the posed template."""
     fit = next((r for r in rows if r["subject"] == default["subject"] and r["condition"] == "ppm"), None)
     line = (f"{default['subject']} default_ppm (no goal: what the alignment buys): ΔQE {default['delta_qe_pp']:+.2f} pp, "
@@ -149,7 +149,7 @@ def _alignment_gain(default: dict, rows: list[dict]) -> list[str]:
     if fit is not None:
         line += (f"; the aligned PPM takes {default['qe_percent'] - fit['qe_percent']:.2f} pp of QE and "
                  f"{default['pe_deg'] - fit['pe_deg']:.2f}° of PE off it")
-    return [line]
+    return line
 
 
 def goal_lines(rows: list[dict]) -> list[str]:
@@ -158,7 +158,7 @@ def goal_lines(rows: list[dict]) -> list[str]:
     for row in rows:
         goal = GOALS.get(row["condition"])
         if row["condition"] == "default_ppm":
-            lines += _alignment_gain(row, rows)
+            lines.append(_alignment_gain(row, rows))
         if goal is None:
             continue
         verdict = "met" if _within(goal, row["delta_qe_pp"], row["delta_pe_deg"]) else "MISSED"

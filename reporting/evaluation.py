@@ -176,14 +176,14 @@ REGION_COLUMNS = ("subject", "condition", "region", "points", "median_mm", "p95_
 
 
 def region_rows(results: str | os.PathLike, subjects: list[str], conditions: dict[str, list[str]],
-                landmarks: dict[str, str | os.PathLike]) -> list[dict]:
+                positions_mm: dict[str, dict[str, np.ndarray]]) -> list[dict]:
     """One row per subject, solved condition and pinna region (:data:`REGION_COLUMNS`), the regions labelled with
-    each subject's template landmarks (``landmarks[subject]``) on its aligned PPM."""
+    each subject's landmark positions (mm) on its aligned PPM (``positions_mm[subject]``)."""
     from .pinna_regions import subject_regions  # noqa: PLC0415
 
     rows = []
     for subject in subjects:
-        for condition, table in subject_regions(results, subject, conditions[subject], landmarks[subject]).items():
+        for condition, table in subject_regions(results, subject, conditions[subject], positions_mm[subject]).items():
             rows += [{"subject": subject, "condition": condition, **row} for row in table]
     return rows
 

@@ -74,17 +74,17 @@ def region_table(labels: np.ndarray, distances_mm: np.ndarray, over_mm: float = 
 
 
 def subject_regions(results: str | os.PathLike, subject: str, conditions: list[str],
-                    landmarks_path: str | os.PathLike) -> dict[str, list[dict]]:
+                    positions_mm: dict[str, np.ndarray]) -> dict[str, list[dict]]:
     """Condition -> region table of one subject, from the evaluation's per-point distances
-    (``results/<subject>/evaluation/<condition>/distances.npz``) and the landmarks on its aligned PPM."""
+    (``results/<subject>/evaluation/<condition>/distances.npz``) and the landmark positions (mm) on its aligned
+    PPM (:func:`landmark_positions_mm`, or those kept with its head: :mod:`reporting.kept_fit`)."""
     results = Path(results)
-    positions = landmark_positions_mm(results / subject / "align" / "aligned_pinna.ply", landmarks_path)
     tables = {}
     for condition in conditions:
         if condition == "reference":
             continue
         data = np.load(results / subject / "evaluation" / condition / "distances.npz")
-        labels = label_points(data["target_points_mm"], positions)
+        labels = label_points(data["target_points_mm"], positions_mm)
         tables[condition] = region_table(labels, data["target_to_model"])
     return tables
 

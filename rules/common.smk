@@ -86,6 +86,7 @@ def template_params():
 HRTF_VARIANTS = ("reference", "original", "ppm", "own_pinna", "default_ppm")
 CONTROLS = ("own_pinna", "default_ppm")
 from reporting.evaluation import flat_settings
+from mesh2hrtf_io.step_store import stored_head
 from reporting.solve_plan import BUILT_HEADS  # ppm and the controls: heads kept in the step store beside their steps
 
 
@@ -128,8 +129,6 @@ def head_mesh_of(subject: str, variant: str) -> str:
         return str(DATA_ROOT / subject / config["hrtf"]["reference_head"])
     if variant not in BUILT_HEADS:
         raise ValueError(f"unknown HRTF variant {variant!r}; known: {HRTF_VARIANTS}")
-    from mesh2hrtf_io.step_store import stored_head
-
     kept = stored_head(store_of(subject, variant))
     if kept is not None:
         return str(kept)
@@ -152,6 +151,10 @@ def hrtf_export_inputs(wildcards) -> dict:
     """The head mesh and, with config hrtf.grid = reference_sofa, the reference SOFA whose directions the
     project is solved at (so that solved and reference ears combine direction by direction)."""
     inputs = {"head": hrtf_head_mesh(wildcards)}
+    store = store_of(wildcards.subject, wildcards.variant)
+    if wildcards.variant == "ppm" and store and stored_head(store) is None:
+        # a PPM head built now and kept at the export: the landmarks of its fit are kept with it (reporting.kept_fit)
+        inputs.update(fit_landmark_inputs(wildcards.subject, prefix="fit"))
     if config["hrtf"]["grid"] == "reference_sofa":
         given = given_reference_sofa(wildcards.subject)
         if not given.is_file():
@@ -322,6 +325,21 @@ EVALUATION_OUTSIDE_SETTINGS = [f"{path}: " + ", ".join(f"{key} = {value}" for ke
                                for path, inside in _INSIDE.items() if not inside]
 
 
+def fit_landmark_inputs(subject: str, prefix: str | None = None) -> dict:
+    """The landmarks on a subject's aligned PPM that label its scan points by region: the kept fit's
+    (``fit_landmarks.json`` beside the kept PPM head, :mod:`reporting.kept_fit`), else the alignment and the
+    template's landmarks.yaml. Keys start with ``prefix`` (default: the subject)."""
+    from reporting.kept_fit import fit_landmarks_path, kept_fit_landmarks
+
+    prefix = subject if prefix is None else prefix
+    store = store_of(subject, "ppm")
+    if kept_fit_landmarks(store) is not None:
+        return {f"{prefix}_fit_landmarks": str(fit_landmarks_path(store))}
+    return {f"{prefix}_aligned": f"results/{subject}/align/aligned_pinna.ply",
+            f"{prefix}_landmarks": str(Path(align_template(SimpleNamespace(subject=subject))).parent
+                                       / "landmarks.yaml")}
+
+
 def evaluation_report_inputs(wildcards) -> dict:
     """Everything the dataset evaluation reads: per subject the localisation, the target scan and, per
     condition, the distances, the collected HRTFs and the solve statuses (for the CPU time)."""
@@ -329,10 +347,9 @@ def evaluation_report_inputs(wildcards) -> dict:
     for subject in SUBJECTS:
         inputs[f"{subject}_localisation"] = f"results/{subject}/localisation/qe_pe.json"
         inputs[f"{subject}_target"] = f"results/{subject}/target/pinna_target.ply"
-        # the regions of the scan (where the geometry differs): the template's landmarks on the aligned PPM
-        inputs[f"{subject}_aligned"] = f"results/{subject}/align/aligned_pinna.ply"
-        inputs[f"{subject}_landmarks"] = str(Path(align_template(SimpleNamespace(subject=subject))).parent
-                                             / "landmarks.yaml")
+        # the regions of the scan (where the geometry differs): the template's landmarks on the aligned PPM, those
+        # of the fit that made the kept PPM head where the store keeps them (then no template or alignment needed)
+        inputs.update(fit_landmark_inputs(subject))
         for condition in evaluation_conditions(subject):
             inputs[f"{subject}_{condition}_distances"] = f"results/{subject}/evaluation/{condition}/distances.json"
             inputs[f"{subject}_{condition}_hrtf"] = f"results/{subject}/hrtf/{condition}/HRTF.sofa"

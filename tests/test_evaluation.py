@@ -276,6 +276,52 @@ def test_scan_points_take_the_region_of_their_nearest_landmark(tmp_path):
         landmark_positions_mm(tmp_path / "small.ply", template / "landmarks.yaml")
 
 
+def test_the_fit_that_made_a_kept_head_labels_the_scan_on_every_clone(tmp_path, caplog):
+    """reporting.kept_fit: the landmarks of the fit are kept beside the PPM head (tied to it by SHA-256) and give the
+    alignment's positions to the micrometre; another alignment no longer relabels the scan; a replaced head falls
+    back to the alignment (and keeps its landmarks as a rebuild); a corrupt file or no head is a clear error."""
+    import json
+    import shutil
+
+    from mesh2hrtf_io.step_store import save_head
+    from ppm.template.store import default_template_dir
+    from reporting.kept_fit import fit_landmarks_path, kept_fit_landmarks, save_fit_landmarks, subject_fit_landmarks
+    from reporting.pinna_regions import landmark_positions_mm
+
+    template, store = default_template_dir(), tmp_path / "store" / "S1" / "ppm"
+    fit, rebuild = tmp_path / "fit.ply", tmp_path / "rebuild.ply"
+    shutil.copy(template / "template_left.ply", fit)
+    moved = trimesh.load(fit, process=False, force="mesh")
+    moved.vertices = moved.vertices + [0.0, 0.0, 2.0]  # a rebuild 2 mm higher
+    moved.export(rebuild)
+    with pytest.raises(ValueError, match="no head.ply"):
+        save_fit_landmarks(store, fit, template / "landmarks.yaml")
+    trimesh.creation.icosphere(subdivisions=2, radius=80.0).export(tmp_path / "head.ply")
+    save_head(tmp_path / "head.ply", store)
+    save_fit_landmarks(store, fit, template / "landmarks.yaml")
+    truth = landmark_positions_mm(fit, template / "landmarks.yaml")
+    kept = kept_fit_landmarks(store)
+    assert set(kept) == set(truth)
+    assert max(np.abs(kept[n] - truth[n]).max() for n in truth) < 1e-6
+    assert not json.loads(fit_landmarks_path(store).read_text())["rebuilt"]
+    # the report's call: the kept fit wins over a rebuild of the alignment
+    labelled = subject_fit_landmarks(str(store), rebuild, template / "landmarks.yaml")
+    assert max(np.abs(labelled[n] - truth[n]).max() for n in truth) < 1e-6
+    # a new head (rebuilt and exported): the kept landmarks are not its fit's, so the alignment's are used and kept
+    trimesh.creation.icosphere(subdivisions=3, radius=80.0).export(tmp_path / "head2.ply")
+    with caplog.at_level("WARNING"):
+        save_head(tmp_path / "head2.ply", store)
+        assert kept_fit_landmarks(store) is None
+    labelled = subject_fit_landmarks(str(store), rebuild, template / "landmarks.yaml")
+    assert labelled["concha_centre"][2] == pytest.approx(truth["concha_centre"][2] + 2.0)
+    assert json.loads(fit_landmarks_path(store).read_text())["rebuilt"]
+    assert kept_fit_landmarks(store)["concha_centre"][2] == pytest.approx(truth["concha_centre"][2] + 2.0)
+    fit_landmarks_path(store).write_text("{not json")
+    with pytest.raises(ValueError, match="fit_landmarks.json.*delete it"):
+        kept_fit_landmarks(store)
+    assert kept_fit_landmarks(None) is None
+
+
 def test_band_attribution_with_every_band_swapped_gives_the_conditions_own_differences(sonicom):
     """benchmarks/band_attribution.py: the unchanged head solved here with all of another set's DTFs taken over (its
     own direction-independent level and phase kept) moves QE/PE by what that set's own summary row says it differs

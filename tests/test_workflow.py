@@ -295,9 +295,15 @@ def test_one_ear_on_the_reference_directions_is_collected_and_completed_by_the_r
                           frequencies_hz="evaluation", step_store="store")
     path = work / "config" / "test_one_ear.yaml"
     path.write_text(yaml.safe_dump(config))
-    # the sphere stands in for the PPM head: the localisation compares it with the reference
+    # the sphere stands in for the PPM head: the localisation compares it with the reference; the packaged
+    # template stands in for its fit (whose landmarks the export keeps with the head)
     (work / "results/S1/remesh").mkdir(parents=True)
     head.export(work / "results/S1/remesh/head.ply")
+    from ppm.template.store import default_template_dir
+
+    for folder, name in (("results/S1/align", "aligned_pinna.ply"), ("results/templates/without_S1", "landmarks.yaml")):
+        (work / folder).mkdir(parents=True, exist_ok=True)
+        shutil.copy(default_template_dir() / ("template_left.ply" if name.endswith(".ply") else name), work / folder / name)
     target = "results/S1/localisation/qe_pe.json"
     done = _run([target, "--cores", "2", "--configfile", str(path), "--allowed-rules", "export_project",
                  "solve_embedded", "collect_sofa", "localisation"], work, timeout=1500)
@@ -316,6 +322,11 @@ def test_one_ear_on_the_reference_directions_is_collected_and_completed_by_the_r
     # the head is kept beside its steps; a fresh clone without the rebuilt head exports the kept one and restores
     # every step instead of solving
     assert (work / "store/S1/ppm/head.ply").read_bytes() == (work / "results/S1/remesh/head.ply").read_bytes()
+    from reporting.kept_fit import kept_fit_landmarks
+    from reporting.pinna_regions import landmark_positions_mm
+
+    fit = landmark_positions_mm(work / "results/S1/align/aligned_pinna.ply", default_template_dir() / "landmarks.yaml")
+    assert kept_fit_landmarks(work / "store/S1/ppm")["concha_centre"] == pytest.approx(fit["concha_centre"], abs=1e-6)
     shutil.rmtree(work / "results/S1/remesh")
     shutil.rmtree(work / "results/S1/hrtf")
     shutil.rmtree(work / "results/S1/localisation")

@@ -11,6 +11,7 @@ configure_logging(snakemake)  # noqa: F821
 
 from mesh2hrtf_io.frequency_sets import describe_set  # noqa: E402
 from reporting.cost import subjects_timings  # noqa: E402
+from reporting.kept_fit import subject_fit_landmarks  # noqa: E402
 from reporting.evaluation import (copy_sofa, evaluation_rows, figure6, figure7, read_summary_csv,  # noqa: E402
                                   region_rows, write_html, write_readme, write_regions_csv, write_summary_csv)
 
@@ -25,7 +26,10 @@ frequencies = json.loads(Path(inputs[f"{subjects[0]}_localisation"]).read_text()
 frequency_note = describe_set(frequencies)
 write_summary_csv(out.summary, rows)
 rows = read_summary_csv(out.summary)  # the figures and texts show the CSV's rounded numbers, not others
-regions = region_rows("results", subjects, conditions, {s: inputs[f"{s}_landmarks"] for s in subjects})
+# the landmarks kept with each PPM head (reporting.kept_fit), else the alignment's (then kept with the head)
+positions = {s: subject_fit_landmarks(params.ppm_stores[s], inputs.get(f"{s}_aligned"), inputs.get(f"{s}_landmarks"))
+             for s in subjects}
+regions = region_rows("results", subjects, conditions, positions)
 write_regions_csv(out.regions, regions)
 copy_sofa({(s, c): inputs[f"{s}_{c}_hrtf"] for s, c in pairs}, out.sofa)
 figure7(rows, out.figure7)

@@ -1,4 +1,5 @@
-"""Rule export_project: a Mesh2HRTF project (NumCalc input) from a closed head mesh in millimetres."""
+"""Rule export_project: a Mesh2HRTF project (NumCalc input) from a closed head mesh in millimetres; a PPM head
+built now is kept in the step store with the landmarks of its fit (reporting.kept_fit)."""
 import sys
 from pathlib import Path
 
@@ -9,6 +10,10 @@ configure_logging(snakemake)  # noqa: F821
 
 from mesh2hrtf_io.hrtf_job import export_head_project  # noqa: E402
 
-export_head_project(snakemake.input.head, snakemake.output.project, snakemake.params.settings,  # noqa: F821
-                    snakemake.input.get("grid_sofa"), snakemake.params.title,  # noqa: F821
-                    snakemake.params.head_store)  # noqa: F821
+inputs, params = snakemake.input, snakemake.params  # noqa: F821
+export_head_project(inputs.head, snakemake.output.project, params.settings,  # noqa: F821
+                    inputs.get("grid_sofa"), params.title, params.head_store)
+if params.head_store and "fit_aligned" in inputs.keys():
+    from reporting.kept_fit import save_fit_landmarks  # noqa: E402
+
+    save_fit_landmarks(params.head_store, inputs.fit_aligned, inputs.fit_landmarks)

@@ -475,6 +475,7 @@ Made by `{command}` (Snakemake; rules/evaluation.smk). Every number below is in 
   restored steps take seconds).
 - `steps/` keeps every solved step with the SHA-256 of its project, and every head the pipeline built (`head.ply`):
   a fresh clone solves those very heads and restores the steps instead of solving (`head_sha256` in the summary).
+  Beside each PPM head, `fit_landmarks.json` keeps the landmarks of its fit that label the scan's regions.
 
 ## Goals
 
@@ -499,7 +500,8 @@ def _regions_markdown(rows: list[dict], regions: list[dict] | None) -> str:
 ## Where the geometry differs
 
 Each scan point is put in the region of its nearest landmark on the subject's aligned PPM
-(`ppm/data/landmark_regions.yaml`); `regions.csv` has every condition and region.
+(`ppm/data/landmark_regions.yaml`; the landmarks kept with the PPM head, `steps/<subject>/ppm/fit_landmarks.json`);
+`regions.csv` has every condition and region.
 
 {lines}
 

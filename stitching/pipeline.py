@@ -17,7 +17,7 @@ from ppm.mesh_io import write_mesh
 
 from .ear_canal import ear_canal_elements
 from .errors import StitchError
-from .remesh import DEFAULT_BANDS, remesh_graded, remove_slivers, repair_self_intersections
+from .remesh import DEFAULT_BANDS, fill_folds, remesh_graded, remove_slivers, repair_self_intersections
 from .replace_pinna import own_pinna_region, replace_pinna
 from .report import validate_head
 from .seam import smooth_seam
@@ -73,7 +73,10 @@ def remesh_files(stitched_path: str | os.PathLike, pinna_path: str | os.PathLike
     """Graded remeshing around the pinna, self-intersection and sliver repair, and the validation report."""
     start = time.perf_counter()
     stitched, pinna = _load(stitched_path, "stitched head"), _load(pinna_path, "pinna")
-    mesh = remove_slivers(repair_self_intersections(remesh_graded(stitched, np.asarray(pinna.vertices), bands)))
+    # a crumple (folded triangles) is cut out before the remeshing and again after it (the remesher may fold a
+    # patch it cannot smooth), then slivers go
+    mesh = repair_self_intersections(remesh_graded(fill_folds(stitched), np.asarray(pinna.vertices), bands))
+    mesh = remove_slivers(fill_folds(mesh))
     mesh = repair_self_intersections(mesh)  # in case the sliver repair made one
     report = validate_head(mesh, pinna)
     # the reciprocal sources for the exporter: ear-canal entrance faces of the final mesh
@@ -85,7 +88,7 @@ def remesh_files(stitched_path: str | os.PathLike, pinna_path: str | os.PathLike
     if not report["ok"]:
         raise StitchError(f"{stitched_path}: the remeshed head is not fit for BEM: {report['problems']}, "
                           f"{report['self_intersecting_faces']} self-intersecting faces, {report['sliver_faces']} sliver "
-                          f"triangles (an angle under {SLIVER_ANGLE_DEG:g} deg)")
+                          f"triangles (an angle under {SLIVER_ANGLE_DEG:g} deg), {report['folded_faces']} folded faces")
     write_mesh(out_mesh, mesh.vertices, mesh.faces)
     write_text_atomic(out_report, json.dumps(report, indent=2) + "\n")
     log.info("remeshed %s: %d triangles, pinna edges median %.2f mm", out_mesh, report["n_triangles"],

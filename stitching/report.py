@@ -9,7 +9,7 @@ import trimesh
 from mesh2hrtf_io.checks import SLIVER_ANGLE_DEG, mesh_problems, min_angles_deg
 from mesh2hrtf_io.constants import ELEMENTS_PER_WAVELENGTH, SPEED_OF_SOUND_M_S
 
-from .remesh import face_distance_to, self_intersections
+from .remesh import face_distance_to, folded_faces, self_intersections
 
 
 def edge_lengths_of(mesh: trimesh.Trimesh, faces: np.ndarray) -> np.ndarray:
@@ -29,6 +29,7 @@ def validate_head(mesh: trimesh.Trimesh, pinna: trimesh.Trimesh | None = None, p
         "volume_mm3": float(mesh.volume), "normals_outward": bool(mesh.volume > 0), "n_triangles": int(len(mesh.faces)),
         "n_vertices": int(len(mesh.vertices)),
         "min_angle_deg": float(angles.min()), "sliver_faces": int((angles < SLIVER_ANGLE_DEG).sum()),
+        "folded_faces": int(folded_faces(mesh).sum()),
         "edge_mm": {"median": float(np.median(edges)), "p95": float(np.percentile(edges, 95)), "max": float(edges.max())},
     }
     report["max_frequency_hz_6_per_wavelength"] = float(SPEED_OF_SOUND_M_S * 1000 / (ELEMENTS_PER_WAVELENGTH * edges.max()))
@@ -45,5 +46,5 @@ def validate_head(mesh: trimesh.Trimesh, pinna: trimesh.Trimesh | None = None, p
         report["pinna_to_head_mm"] = {"median": float(np.median(distance)), "p95": float(np.percentile(distance, 95)),
                                       "max": float(distance.max())}
     report["ok"] = bool(report["closed"] and not problems and report["self_intersecting_faces"] == 0
-                        and report["sliver_faces"] == 0)
+                        and report["sliver_faces"] == 0 and report["folded_faces"] == 0)
     return report

@@ -72,7 +72,7 @@ def save_step(project_dir: str | os.PathLike, source: int, step: int, store: str
     np.savez_compressed(buffer, pressure=pressure.astype(np.complex128), node_ids=nodes.astype(np.int64),
                         frequency_hz=float(project.frequencies_hz[step - 1]),
                         fingerprint=fingerprint, status_json=json.dumps(status or {}),
-                        saved_utc=_utc_now())
+                        saved_utc=utc_now())
     target.parent.mkdir(parents=True, exist_ok=True)
     with atomic_path(target) as tmp:
         Path(tmp).write_bytes(buffer.getvalue())
@@ -128,7 +128,7 @@ def file_sha256(path: str | os.PathLike) -> str:
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
-def _utc_now() -> str:
+def utc_now() -> str:
     """The time now, ISO 8601 in UTC (when a step or head was saved)."""
     return time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
 
@@ -154,5 +154,5 @@ def save_head(head_path: str | os.PathLike, store: str | os.PathLike) -> Path:
     faces = len(trimesh.load(target, process=False, force="mesh").faces)
     write_text_atomic(target.with_suffix(".json"), json.dumps(
         {"sha256": digest, "triangles": faces, "copied_from": str(head_path),
-         "saved_utc": _utc_now()}, indent=2) + "\n")
+         "saved_utc": utc_now()}, indent=2) + "\n")
     return target

@@ -16,12 +16,11 @@ from __future__ import annotations
 import json
 import logging
 import os
-import time
 from pathlib import Path
 
 import numpy as np
 
-from mesh2hrtf_io.step_store import HEAD_FILE, file_sha256
+from mesh2hrtf_io.step_store import HEAD_FILE, file_sha256, utc_now
 from ppm.atomic import write_text_atomic
 
 log = logging.getLogger(__name__)
@@ -47,7 +46,7 @@ def save_fit_landmarks(store: str | os.PathLike, pinna_path: str | os.PathLike, 
     positions = landmark_positions_mm(pinna_path, landmarks_path)
     record = {"head_sha256": file_sha256(head), "rebuilt": bool(rebuilt),
               "aligned_pinna_sha256": file_sha256(pinna_path), "from": str(pinna_path),
-              "saved_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+              "saved_utc": utc_now(),
               "landmarks_mm": {name: [round(float(v), 6) for v in xyz] for name, xyz in sorted(positions.items())}}
     target = fit_landmarks_path(store)
     write_text_atomic(target, json.dumps(record, indent=1) + "\n")

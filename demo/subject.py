@@ -28,7 +28,7 @@ from ppm.model import PinnaModel
 from ppm.parameters import random_parameters
 from stitching.ear_canal import ear_canal_elements
 from stitching.loops import boundary_loops
-from stitching.remesh import Band, remesh_graded, repair_self_intersections
+from stitching.remesh import Band, fill_folds, remesh_graded, repair_self_intersections
 from stitching.report import validate_head
 
 from .head import HeadShape, head_with_pinnae
@@ -73,7 +73,7 @@ def make_demo_subject(out_dir: str | os.PathLike, seed: int, bands: list[Band], 
     on_pinna = np.flatnonzero(trimesh.proximity.ProximityQuery(pinna).signed_distance(crop.vertices) > -0.5)
     scan = add_scan_defects(crop, rng, noise_mm=noise_mm, holes=holes, hole_radius_mm=hole_radius_mm,
                             outlier_share=outlier_share, hole_centres=on_pinna)
-    graded = repair_self_intersections(remesh_graded(head, np.asarray(pinna.vertices), bands))
+    graded = fill_folds(repair_self_intersections(remesh_graded(head, np.asarray(pinna.vertices), bands)))
     report = validate_head(graded, pinna)
     for side in ("left", "right"):
         ear_canal_elements(graded, side, source=f"{out}/head_graded_left.ply")

@@ -7,9 +7,11 @@ For every subject and solved condition in ``<evaluation>/summary.csv``, the comm
 subject's reference HRIRs (``../shared/data/sonicom/<subject>/hrir_mesh2hrtf_48k.sofa``, left ear) sampled
 exactly at the same frequencies (DFT of the impulse responses). DTF here: per frequency, the level in dB
 with its mean over the 793 directions removed. Printed per frequency: the median and 95th percentile of
-|ΔDTF| over the directions (dB), and the median over baumgartner2014's band (0.7-18 kHz).
+|ΔDTF| over the directions (dB), the common transfer function's gap (the part the DTF removes: the solved
+set's level minus the reference's, averaged over the directions, dB, signed; what the source and the ear canal
+and concha in front of it add to every direction alike), and the median over baumgartner2014's band (0.7-18 kHz).
 Reads committed files only (seconds). Last line (JSON): per subject and condition the frequencies (Hz), the
-per-frequency medians and p95 (dB) and the band median (dB).
+per-frequency medians and p95 (dB), the common transfer function's gap (``ctf_gap_db``) and the band median (dB).
 """
 from __future__ import annotations
 
@@ -27,8 +29,9 @@ SONICOM = ROOT.parent / "shared" / "data" / "sonicom"
 BAND_HZ = (700.0, 18000.0)  # baumgartner2014's default analysis band
 
 
-def left_ear_gap(subject: str, sofa_path: Path) -> tuple[np.ndarray, np.ndarray]:
-    """Frequencies (Hz) of the solved set and |ΔDTF| (dB), (directions, K), against the reference's left ear."""
+def left_ear_gap(subject: str, sofa_path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Frequencies (Hz) of the solved set, |ΔDTF| (dB), (directions, K), and the common transfer function's gap
+    (dB, (K,), solved minus reference, level averaged over the directions), against the reference's left ear."""
     import sofar
 
     from amt_bridge.dtf import directional_levels_db
@@ -42,7 +45,14 @@ def left_ear_gap(subject: str, sofa_path: Path) -> tuple[np.ndarray, np.ndarray]
     spectra = solved.Data_Real[:, 0, :] + 1j * solved.Data_Imag[:, 0, :]
     rate = float(np.squeeze(reference.Data_SamplingRate))
     exact = sample_spectra(reference.Data_IR[:, 0, :], rate, frequencies)
-    return frequencies, np.abs(directional_levels_db(spectra) - directional_levels_db(exact))
+    dtf_gap = np.abs(directional_levels_db(spectra) - directional_levels_db(exact))
+    ctf_gap = (_levels_db(spectra) - _levels_db(exact)).mean(axis=0)
+    return frequencies, dtf_gap, ctf_gap
+
+
+def _levels_db(spectra: np.ndarray) -> np.ndarray:
+    """Levels (dB) of complex spectra."""
+    return 20.0 * np.log10(np.abs(spectra) + 1e-20)
 
 
 def main() -> None:
@@ -57,17 +67,18 @@ def main() -> None:
         subject, condition = row["subject"], row["condition"]
         if condition == "reference":
             continue
-        frequencies, gap = left_ear_gap(subject, args.evaluation / "sofa" / left_hrtf_name(subject, condition))
+        frequencies, gap, ctf_gap = left_ear_gap(subject, args.evaluation / "sofa" / left_hrtf_name(subject, condition))
         median, p95 = np.median(gap, axis=0), np.percentile(gap, 95, axis=0)
         band = (frequencies >= BAND_HZ[0]) & (frequencies <= BAND_HZ[1])
         band_median = float(np.median(gap[:, band]))
-        print(f"{subject} {condition}: |ΔDTF| vs the reference, median (p95) over 793 directions, dB; "
-              f"over 0.7-18 kHz {band_median:.2f} dB")
-        for f, m, p in zip(frequencies, median, p95):
-            print(f"  {f / 1000:6.2f} kHz  {m:5.2f}  ({p:5.2f})")
+        print(f"{subject} {condition}: |ΔDTF| vs the reference, median (p95) over 793 directions, dB, and the "
+              f"common transfer function's gap (dB); |ΔDTF| over 0.7-18 kHz {band_median:.2f} dB")
+        for f, m, p, c in zip(frequencies, median, p95, ctf_gap):
+            print(f"  {f / 1000:6.2f} kHz  {m:5.2f}  ({p:5.2f})  CTF {c:+6.2f}")
         figures[f"{subject}_{condition}"] = {"frequencies_hz": [round(float(f), 1) for f in frequencies],
                                              "median_db": [round(float(m), 3) for m in median],
                                              "p95_db": [round(float(p), 3) for p in p95],
+                                             "ctf_gap_db": [round(float(c), 3) for c in ctf_gap],
                                              "band_median_db": round(band_median, 3)}
     print(json.dumps(figures))
 

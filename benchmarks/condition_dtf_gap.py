@@ -29,6 +29,16 @@ SONICOM = ROOT.parent / "shared" / "data" / "sonicom"
 BAND_HZ = (700.0, 18000.0)  # baumgartner2014's default analysis band
 
 
+LATERAL_BANDS_DEG = ((-90, -45), (-45, -15), (-15, 15), (15, 45), (45, 91))  # lateral angle, + towards the left
+MID_BAND_HZ = (4000.0, 10300.0)
+
+
+def lateral_angles_deg(source_position: np.ndarray) -> np.ndarray:
+    """Lateral angle (deg, +90 = left) of SOFA spherical directions (azimuth, elevation in degrees)."""
+    azimuth, elevation = np.radians(source_position[:, 0]), np.radians(source_position[:, 1])
+    return np.degrees(np.arcsin(np.clip(np.cos(elevation) * np.sin(azimuth), -1.0, 1.0)))
+
+
 def left_ear_gap(subject: str, sofa_path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Frequencies (Hz) of the solved set, |ΔDTF| (dB), (directions, K), and the common transfer function's gap
     (dB, (K,), solved minus reference, level averaged over the directions), against the reference's left ear."""
@@ -48,6 +58,13 @@ def left_ear_gap(subject: str, sofa_path: Path) -> tuple[np.ndarray, np.ndarray,
     dtf_gap = np.abs(directional_levels_db(spectra) - directional_levels_db(exact))
     ctf_gap = (_levels_db(spectra) - _levels_db(exact)).mean(axis=0)
     return frequencies, dtf_gap, ctf_gap
+
+
+def directions_of(subject: str) -> np.ndarray:
+    """The reference SOFA's source positions (azimuth, elevation in degrees, distance)."""
+    import sofar
+
+    return np.asarray(sofar.read_sofa(str(SONICOM / subject / "hrir_mesh2hrtf_48k.sofa"), verify=False).SourcePosition)
 
 
 def _levels_db(spectra: np.ndarray) -> np.ndarray:
@@ -75,10 +92,17 @@ def main() -> None:
               f"common transfer function's gap (dB); |ΔDTF| over 0.7-18 kHz {band_median:.2f} dB")
         for f, m, p, c in zip(frequencies, median, p95, ctf_gap):
             print(f"  {f / 1000:6.2f} kHz  {m:5.2f}  ({p:5.2f})  CTF {c:+6.2f}")
+        lateral = lateral_angles_deg(directions_of(subject))
+        mid = (frequencies >= MID_BAND_HZ[0]) & (frequencies <= MID_BAND_HZ[1])
+        by_lateral = {f"{lo}..{hi}": round(float(np.median(gap[(lateral >= lo) & (lateral < hi)][:, mid])), 3)
+                      for lo, hi in LATERAL_BANDS_DEG}
+        print("  median |ΔDTF| over 4-10.3 kHz by lateral angle (deg): "
+              + ", ".join(f"{k}: {v:.2f} dB" for k, v in by_lateral.items()))
         figures[f"{subject}_{condition}"] = {"frequencies_hz": [round(float(f), 1) for f in frequencies],
                                              "median_db": [round(float(m), 3) for m in median],
                                              "p95_db": [round(float(p), 3) for p in p95],
                                              "ctf_gap_db": [round(float(c), 3) for c in ctf_gap],
+                                             "mid_band_median_db_by_lateral_deg": by_lateral,
                                              "band_median_db": round(band_median, 3)}
     print(json.dumps(figures))
 

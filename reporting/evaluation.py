@@ -112,6 +112,11 @@ def evaluation_rows(results: str | os.PathLike, subjects: list[str], conditions:
         reference = predicted["reference"]
         original = predicted.get("original") if "original" in conditions[subject] else None
         n_frequencies = len(localisation.get("frequency_set", {}).get("frequencies_hz", [])) or None
+        missing = [c for c in ["reference", *conditions[subject]] if c not in predicted]
+        if missing:
+            raise ValueError(f"{results / subject / 'localisation' / 'qe_pe.json'} has no prediction for "
+                             f"{', '.join(missing)} (made before the condition was configured): rerun the rule "
+                             f"localisation for {subject} (e.g. snakemake --forcerun localisation)")
         for condition in ["reference", *conditions[subject]]:
             p = predicted[condition]
             row = {"subject": subject, "condition": condition, "qe_percent": p["qe_percent"], "pe_deg": p["pe_deg"],

@@ -93,6 +93,8 @@ def test_rows_carry_deltas_against_the_reference_and_goals_are_judged(tmp_path):
     write_summary_csv(tmp_path / "summary.csv", rows)
     back = read_summary_csv(tmp_path / "summary.csv")
     assert back[1]["delta_pe_deg"] == pytest.approx(3.0) and back[0]["distance_median_mm"] is None
+    with pytest.raises(ValueError, match=r"qe_pe.json has no prediction for default_ppm.*forcerun localisation"):
+        evaluation_rows(tmp_path / "results", ["S1"], {"S1": ["ppm", "default_ppm"]}, heads, steps)
 
 
 @pytest.mark.skipif(not (COMMITTED / "summary.csv").is_file(), reason="the SONICOM evaluation is not committed yet")

@@ -42,11 +42,8 @@ REGULAR_QUADRATURE_ORDER = 2
 SINGULAR_QUADRATURE_ORDER = 4
 
 
-#: bempp-cl backends, fastest first. OpenCL runs on the CPU through pocl (pip: pyopencl, pocl-binary-distribution):
-#: on a 1,250-vertex sphere (both ears, 2 threads) it solves a frequency in 6.3 s against numba's 15.1 s, and its
-#: first frequency, kernel builds included, takes 53 s against numba's 129 s of compilation in every process
-#: (benchmarks/embedded_backends.py).
-DEVICES = ("opencl", "numba")
+#: Backends of the embedded solver (mesh2hrtf_io/backends.py says what each computes where, and how they are probed).
+DEVICES = ("numba", "opencl", "cuda")
 #: bempp-cl modules whose numba functions take only arrays and can be cached on disk (numba's assembly kernels
 #: take other jitted functions as arguments and cannot)
 GRID_AND_SPACE_MODULES = ("bempp_cl.api.grid.grid", "bempp_cl.api.space.scalar_spaces", "bempp_cl.api.space.space",
@@ -55,40 +52,49 @@ _device_state: dict[str, object] = {"device": None}
 
 
 def opencl_cpu_available() -> bool:
-    """True when pyopencl imports and offers a CPU device (pocl's, or a vendor driver)."""
+    """True when pyopencl imports and offers a CPU device (pocl's, or a vendor driver). This says nothing about
+    whether its kernel compiler works: :func:`mesh2hrtf_io.backends.probe` tells that."""
     try:
         import pyopencl  # noqa: PLC0415
         return any(device.type & pyopencl.device_type.CPU
                    for platform in pyopencl.get_platforms() for device in platform.get_devices())
-    except Exception:  # noqa: BLE001 - no pyopencl, no ICD loader, no platform: numba it is
+    except Exception:  # noqa: BLE001 - no pyopencl, no ICD loader, no platform
         return False
 
 
-def _fastest_device() -> str:
-    return "opencl" if opencl_cpu_available() else "numba"
+def set_backend(device: str) -> None:
+    """Use ``device`` (numba, opencl or cuda) for the following solves of this process, without probing it (the
+    probe's child and tests; the workflow goes through :func:`use_device`)."""
+    if device not in DEVICES:
+        raise Mesh2HrtfIoError(f"embedded device must be one of {', '.join(DEVICES)}; got {device!r}")
+    _device_state["device"] = device
+    if device == "opencl":
+        _bempp().DEFAULT_DEVICE_INTERFACE = "opencl"
+
+
+def current_backend() -> str:
+    """The backend the next solve uses (numba unless :func:`use_device` or :func:`set_backend` chose another)."""
+    return str(_device_state["device"] or "numba")
 
 
 def use_device(device: str = "auto", threads: int | None = None) -> str:
-    """Choose bempp-cl's backend ('auto': OpenCL on a CPU device when available, else numba) and its threads
-    (None: all cores); call before the first solve of the process. Returns the backend chosen."""
-    if device not in ("auto", *DEVICES):
-        raise Mesh2HrtfIoError(f"embedded device must be one of auto, {', '.join(DEVICES)}; got {device!r}")
+    """Choose the embedded solver's backend ('auto': cuda where a GPU passes its probe, else numba; 'opencl' and
+    'cuda' only after their probe passed on this machine, :mod:`mesh2hrtf_io.backends`) and its CPU threads (None:
+    all cores); call before the first solve of the process. Returns the backend chosen."""
+    from .backends import CHOICES, choose_backend  # noqa: PLC0415
+
+    if device not in CHOICES:
+        raise Mesh2HrtfIoError(f"embedded device must be one of {', '.join(CHOICES)}; got {device!r}")
     if threads:
         import numba  # noqa: PLC0415
 
         numba.set_num_threads(max(1, min(int(threads), numba.config.NUMBA_NUM_THREADS)))
-        # pocl reads its thread count once, when pyopencl first lists the platforms (the device probe below):
-        # set before it, a 1-thread job on a 2-core machine uses one core instead of both
+        # pocl reads its thread count once, when pyopencl first lists the platforms: set before it
         os.environ["POCL_MAX_PTHREAD_COUNT"] = str(int(threads))
-    chosen = _fastest_device() if device == "auto" else device
-    if device == "opencl" and not opencl_cpu_available():
-        raise Mesh2HrtfIoError("embedded device 'opencl' asked for, but pyopencl has no CPU device: "
-                               "pip install pyopencl pocl-binary-distribution, or use 'numba'")
-    _device_state["device"] = chosen
-    bempp = _bempp()
-    bempp.DEFAULT_DEVICE_INTERFACE = chosen
-    log.info("embedded solver: bempp-cl on %s%s", chosen, f", {threads} thread(s)" if threads else "")
-    return chosen
+    choice = choose_backend(device)
+    set_backend(choice.backend)
+    log.info("embedded solver: %s (%s)%s", choice.backend, choice.reason, f", {threads} thread(s)" if threads else "")
+    return choice.backend
 
 
 def _bempp():
@@ -112,9 +118,9 @@ def _bempp():
         # pocl's compiler would print "66 warnings generated." for every kernel build of bempp-cl: '-w' (an
         # OpenCL build option) keeps its warnings, which are about bempp-cl's sources, out of the user's terminal
         os.environ.setdefault("PYOPENCL_BUILD_OPTIONS", "-w")
-        if _device_state["device"] is None:
-            _device_state["device"] = _fastest_device()
-        bempp.DEFAULT_DEVICE_INTERFACE = _device_state["device"]
+        # bempp-cl's own kernels run only for the opt-in opencl backend (the right-hand sides and potentials);
+        # numba's are compiled only when asked for
+        bempp.DEFAULT_DEVICE_INTERFACE = "opencl" if _device_state["device"] == "opencl" else "numba"
         bempp.GLOBAL_PARAMETERS.quadrature.regular = REGULAR_QUADRATURE_ORDER
         bempp.GLOBAL_PARAMETERS.quadrature.singular = SINGULAR_QUADRATURE_ORDER
         _keep_opencl_kernels()
@@ -221,12 +227,8 @@ def solve_sources(vertices_m: np.ndarray, faces: np.ndarray, sources: list[tuple
     once per frequency and applied to every source's right-hand side (a direct solve: no iteration that
     could stall at high frequencies on coarse meshes).
     """
-    import scipy.linalg  # noqa: PLC0415
-
     bempp = _bempp()
-    from bempp_cl.api.operators.boundary import helmholtz  # noqa: PLC0415
-    from bempp_cl.api.operators.potential import helmholtz as helmholtz_potential  # noqa: PLC0415
-
+    backend = current_backend()
     k = 2.0 * np.pi * frequency_hz / speed_of_sound_m_s
     # each source's vibrating elements form a segment of their own (1, 2, ...); the prescribed velocity lives
     # only there, so the right-hand side operators are (vertices x ear elements), not dense
@@ -235,17 +237,43 @@ def solve_sources(vertices_m: np.ndarray, faces: np.ndarray, sources: list[tuple
         if np.any(segments[np.asarray(elements)]):
             raise Mesh2HrtfIoError("two sources share vibrating elements; give each ear its own elements")
         segments[np.asarray(elements)] = EAR_SEGMENT + index
-    from . import burton_miller  # noqa: PLC0415 - numba's import and compiled kernels only when solving
+    from . import bem_arrays, burton_miller  # noqa: PLC0415 - numba's import and compiled kernels only when solving
 
-    grid, p1, mass, far_geometry, touching = _surface(bempp, vertices_m, faces, segments)
+    grid, p1, mass, far_geometry, touching, arrays = _surface(bempp, vertices_m, faces, segments)
     coupling = 1j / k  # Burton-Miller coupling for outgoing e^{ikr} waves
     start = time.perf_counter()
-    # coupling * W - K in one pass for both operators (burton_miller.py): the element pairs sharing no vertex with
-    # bempp-cl's Gauss rule, the touching ones with its singular rule; equal to bempp-cl's dense assembly to 1e-15
-    system = burton_miller.assemble_far_pairs(far_geometry, k, coupling)
-    burton_miller.add_singular_pairs(system, touching, far_geometry, k, coupling)
-    mass_rows, mass_columns, mass_values = mass
-    np.add.at(system, (mass_rows, mass_columns), 0.5 * mass_values)
+    array_sources = [(np.asarray(elements, np.int64), float(velocity)) for elements, velocity in sources]
+    if backend == "cuda":
+        # everything on the GPU: the same array code as the CPU twin (bem_arrays.py)
+        pressures = bem_arrays.solve_sources_arrays(_device_surface(arrays, "cupy"), array_sources, points_m,
+                                                    frequency_hz, speed_of_sound_m_s, density_kg_m3)
+    else:
+        # coupling * W - K in one pass for both operators (burton_miller.py): the element pairs sharing no vertex
+        # with bempp-cl's Gauss rule, the touching ones with its singular rule; equal to bempp-cl's dense assembly
+        system = burton_miller.assemble_far_pairs(far_geometry, k, coupling)
+        burton_miller.add_singular_pairs(system, touching, far_geometry, k, coupling)
+        mass_rows, mass_columns, mass_values = mass
+        np.add.at(system, (mass_rows, mass_columns), 0.5 * mass_values)
+        if backend == "opencl":
+            pressures = _opencl_sources(bempp, grid, p1, system, segments, sources, points_m, frequency_hz, k,
+                                        coupling, density_kg_m3)
+        else:
+            pressures = bem_arrays.solve_sources_arrays(_device_surface(arrays, "numpy"), array_sources, points_m,
+                                                        frequency_hz, speed_of_sound_m_s, density_kg_m3,
+                                                        system=system)
+    log.info("%.0f Hz: solved %d unknowns for %d source(s) in %.1f s (%s)", frequency_hz, p1.global_dof_count,
+             len(sources), time.perf_counter() - start, backend)
+    return pressures
+
+
+def _opencl_sources(bempp, grid, p1, system, segments, sources, points_m, frequency_hz, k, coupling,
+                    density_kg_m3) -> list[np.ndarray]:
+    """The opt-in opencl backend: the right-hand sides and the potentials by bempp-cl's OpenCL kernels."""
+    import scipy.linalg  # noqa: PLC0415
+
+    from bempp_cl.api.operators.boundary import helmholtz  # noqa: PLC0415
+    from bempp_cl.api.operators.potential import helmholtz as helmholtz_potential  # noqa: PLC0415
+
     factors = scipy.linalg.lu_factor(system, overwrite_a=True, check_finite=False)
     points = np.asarray(points_m, np.float64).T.copy()
     double_layer_potential = helmholtz_potential.double_layer(p1, points, k)
@@ -266,8 +294,6 @@ def solve_sources(vertices_m: np.ndarray, faces: np.ndarray, sources: list[tuple
         field = (double_layer_potential * surface_pressure
                  - helmholtz_potential.single_layer(dp0, points, k) * neumann)
         pressures.append(np.asarray(field).ravel())
-    log.info("%.0f Hz: solved %d unknowns for %d source(s) in %.1f s", frequency_hz, p1.global_dof_count,
-             len(sources), time.perf_counter() - start)
     return pressures
 
 
@@ -306,15 +332,28 @@ def _surface(bempp, vertices_m: np.ndarray, faces: np.ndarray, segments: np.ndar
     key = hashlib.blake2b(vertices.tobytes() + triangles.tobytes() + np.ascontiguousarray(segments).tobytes(),
                           digest_size=16).hexdigest()
     if _surface_state["key"] != key:
-        from . import burton_miller  # noqa: PLC0415
+        from . import bem_arrays, burton_miller  # noqa: PLC0415
 
         grid = bempp.Grid(vertices.T.copy(), triangles.T.copy(), domain_indices=segments)
         p1 = bempp.function_space(grid, "P", 1)
-        _surface_state["surface"] = (grid, p1, _p1_mass(grid, p1),
-                                     burton_miller.far_field_geometry(grid, p1, REGULAR_QUADRATURE_ORDER),
-                                     burton_miller.singular_pairs(grid, p1, SINGULAR_QUADRATURE_ORDER))
+        far = burton_miller.far_field_geometry(grid, p1, REGULAR_QUADRATURE_ORDER)
+        touching = burton_miller.singular_pairs(grid, p1, SINGULAR_QUADRATURE_ORDER)
+        _surface_state["surface"] = (grid, p1, _p1_mass(grid, p1), far, touching,
+                                     bem_arrays.from_geometry(far, touching))
         _surface_state["key"] = key
+        _surface_state["device_surfaces"] = {}
     return _surface_state["surface"]
+
+
+def _device_surface(arrays, backend: str):
+    """The surface's arrays on ``backend`` ('numpy' or 'cupy'), kept with the surface."""
+    from . import bem_arrays  # noqa: PLC0415
+
+    kept = _surface_state.setdefault("device_surfaces", {})
+    if backend not in kept:
+        kept[backend] = bem_arrays.DeviceSurface(
+            arrays, bem_arrays.cupy_backend() if backend == "cupy" else bem_arrays.numpy_backend())
+    return kept[backend]
 
 
 def free_field_reference(points_m: np.ndarray, frequency_hz: float, source_area_m2: float,

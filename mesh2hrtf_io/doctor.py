@@ -26,12 +26,31 @@ def numcalc_status(configured: str | os.PathLike | None = None) -> dict:
 
 
 def embedded_status() -> dict:
-    """The embedded solver: bempp-cl and numba installed (found without importing them: bempp-cl's import
-    compiles kernels and prints chatter)."""
+    """The embedded solver and each of its backends (numba, opencl, cuda): installed, and the cached verdict of its
+    probe on this machine (mesh2hrtf_io/backends.py; None: not probed yet), and what ``auto`` would choose now
+    without probing. Nothing is imported that could abort: the probes run in child processes."""
+    from .backends import BACKENDS, auto_candidates, cache_dir, CACHE_FILE, cached_verdict  # noqa: PLC0415
+
     missing = [name for name in ("bempp_cl", "numba") if importlib.util.find_spec(name) is None]
     if missing:
         return {"usable": False, "why": f"{', '.join(missing)} not installed; run scripts/setup.sh"}
-    return {"usable": True, "why": "bempp-cl installed; dense, suits meshes up to ~10,000 vertices"}
+    needs = {"numba": (), "opencl": ("pyopencl",), "cuda": ("cupy",)}
+    states = {}
+    for backend in BACKENDS:
+        absent = [name for name in needs[backend] if importlib.util.find_spec(name) is None]
+        verdict = None if backend == "numba" or absent else cached_verdict(backend)
+        states[backend] = {
+            "installed": not absent,
+            "usable": backend == "numba" or bool(verdict and verdict.ok),
+            "verdict": verdict.as_dict() if verdict else None,
+            "why": ("always: the fallback" if backend == "numba" else
+                    f"{', '.join(absent)} not installed" + (" (pip install -e '.[gpu]')" if backend == "cuda" else "")
+                    if absent else (verdict.reason if verdict else "not probed yet on this machine "
+                                    f"(probed on first use; or: python -m mesh2hrtf_io.backends {backend} --out F)"))}
+    candidates = [c for c in auto_candidates() if states[c]["verdict"] is None or states[c]["usable"]]
+    return {"usable": True, "why": "bempp-cl installed; dense, suits meshes up to ~10,000 vertices on a CPU",
+            "backends": states, "auto": candidates[0] if candidates else "numba",
+            "verdict_cache": str(cache_dir() / CACHE_FILE)}
 
 
 def doctor(configured_numcalc: str | os.PathLike | None = None) -> dict:

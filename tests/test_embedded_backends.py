@@ -1,0 +1,180 @@
+"""The embedded solver's backends: probes in a child process that may die, the cached verdicts, the explicit-backend
+error, the real probe of this CPU, and the array code (CPU twin of the GPU path) against the numba assembly."""
+import json
+import logging
+import sys
+
+import numpy as np
+import pytest
+import trimesh
+
+from mesh2hrtf_io import backends, bem, bem_arrays, burton_miller
+from mesh2hrtf_io.errors import Mesh2HrtfIoError
+
+#: a probe program that does what pocl's compiler did on AMD Zen 4: print LLVM's complaint and abort the process
+ABORTING_PROBE = [sys.executable, "-c", "import os, sys; sys.stderr.write('LLVM ERROR: Cannot select: "
+                  "0x5581: i64 = fsqrt 0x5580\\n'); sys.stderr.flush(); os.abort()"]
+
+
+@pytest.fixture
+def cache(tmp_path, monkeypatch):
+    """Verdicts cached in a folder of this test."""
+    monkeypatch.setenv("PPM_HRTF_CACHE_DIR", str(tmp_path / "cache"))
+    return tmp_path / "cache" / backends.CACHE_FILE
+
+
+def counting_probe(tmp_path, ok=True):
+    """A probe program that counts its runs in a file and answers ``ok``."""
+    counter = tmp_path / "runs.txt"
+    code = ("import json, sys, pathlib; c = pathlib.Path(sys.argv[1]); "
+            "c.write_text(c.read_text() + 'x' if c.exists() else 'x'); "
+            f"pathlib.Path(sys.argv[2]).write_text(json.dumps({{'ok': {ok}, 'reason': 'fake device works'}}))")
+    return counter, [sys.executable, "-c", code, str(counter), "{out}"]
+
+
+def test_a_probe_that_dies_by_a_signal_is_a_failed_probe_and_auto_falls_back_to_numba(cache, caplog):
+    with caplog.at_level(logging.WARNING, logger="mesh2hrtf_io.backends"):
+        choice = backends.choose_backend("auto", candidates=("opencl",), probe_command=ABORTING_PROBE)
+    assert choice.backend == "numba"
+    assert "SIGABRT" in choice.reason and "LLVM ERROR: Cannot select" in choice.reason
+    warnings = [r.getMessage() for r in caplog.records if r.levelno == logging.WARNING]
+    assert len(warnings) == 1 and "using numba instead" in warnings[0] and "fsqrt" in warnings[0]
+    verdict = json.loads(cache.read_text())
+    assert [v["ok"] for v in verdict.values()] == [False]
+
+
+def test_an_explicit_backend_that_fails_its_probe_stops_with_the_setting_to_change(cache):
+    with pytest.raises(Mesh2HrtfIoError) as error:
+        backends.choose_backend("opencl", probe_command=ABORTING_PROBE)
+    message = str(error.value)
+    assert "SIGABRT" in message and "fsqrt" in message and "embedded_device: numba" in message
+    # the failed verdict is cached: the next run says the same without probing again
+    with pytest.raises(Mesh2HrtfIoError, match="SIGABRT"):
+        backends.choose_backend("opencl", probe_command=[sys.executable, "-c", "raise SystemExit(0)"])
+
+
+def test_verdicts_are_cached_per_machine_and_library_versions(cache, tmp_path, monkeypatch):
+    counter, command = counting_probe(tmp_path)
+    first = backends.probe("opencl", command=command)
+    assert counter.read_text() == "x" and first.ok and not first.cached
+    again = backends.probe("opencl", command=command)
+    assert again.cached and counter.read_text() == "x"  # no second probe
+    versions = backends.library_versions("opencl")
+    monkeypatch.setattr(backends, "library_versions",
+                        lambda backend: {**versions, "pocl-binary-distribution": "99.0"})
+    backends.probe("opencl", command=command)
+    assert counter.read_text() == "xx"  # a changed library version probes again
+    assert len(json.loads(cache.read_text())) == 2
+
+
+def test_a_probe_that_exits_non_zero_names_its_last_stderr_line(cache):
+    verdict = backends.probe("cuda", command=[sys.executable, "-c",
+                                              "import sys; print('chatter', file=sys.stderr); "
+                                              "sys.exit('CUDA driver version is insufficient')"], use_cache=False)
+    assert not verdict.ok and "status 1" in verdict.reason and "insufficient" in verdict.reason
+
+
+def test_numba_needs_no_probe_and_auto_without_a_gpu_is_numba(cache, monkeypatch):
+    monkeypatch.setattr(backends, "gpu_seen", lambda: False)
+    assert backends.choose_backend("numba").backend == "numba"
+    assert backends.choose_backend("auto").backend == "numba"
+    assert not cache.exists()  # nothing was probed
+    with pytest.raises(Mesh2HrtfIoError, match="one of auto"):
+        backends.choose_backend("gpu")
+
+
+@pytest.mark.slow
+def test_the_real_opencl_probe_on_this_cpu(cache):
+    """The real probe in a child process: whatever this CPU is, the verdict is a clear yes or no, and auto never
+    dies with it."""
+    verdict = backends.probe("opencl")
+    assert verdict.reason
+    if verdict.ok:
+        assert verdict.details["max_relative_difference"] < backends.PROBE_TOLERANCE
+        assert verdict.details["kernel_max_error"] < 1e-12
+    choice = backends.choose_backend("auto", candidates=("opencl",))
+    assert choice.backend == ("opencl" if verdict.ok else "numba")
+    assert backends.probe("opencl").cached
+
+
+def test_doctor_reports_every_backend_and_the_cached_verdicts(cache, tmp_path):
+    from mesh2hrtf_io.doctor import embedded_status
+
+    backends.probe("opencl", command=ABORTING_PROBE)
+    status = embedded_status()
+    assert status["usable"] and set(status["backends"]) == {"numba", "opencl", "cuda"}
+    assert status["backends"]["numba"]["usable"]
+    opencl = status["backends"]["opencl"]
+    assert opencl["verdict"]["ok"] is False and "SIGABRT" in opencl["verdict"]["reason"]
+    assert status["auto"] in ("numba", "cuda")
+
+
+# --- the array code (bem_arrays.py): the GPU path's CPU twin ---------------------------------------------------
+
+def demo_like_head():
+    """A closed ellipsoid of demo-head size and resolution (1,250 vertices; the demo heads have ~1,190)."""
+    sphere = trimesh.creation.uv_sphere(radius=1.0, count=[25, 25])
+    head = trimesh.Trimesh(sphere.vertices * [0.095, 0.076, 0.115], sphere.faces)  # merged poles
+    ears = [[int(np.argmin(np.linalg.norm(head.triangles_center - [0, side * 0.076, 0], axis=1)))] for side in (1, -1)]
+    return head, ears
+
+
+def surface_of(head):
+    bempp = bem._bempp()
+    grid = bempp.Grid(np.ascontiguousarray(head.vertices.T), np.ascontiguousarray(head.faces.T.astype(np.uint32)))
+    p1 = bempp.function_space(grid, "P", 1)
+    far = burton_miller.far_field_geometry(grid, p1, bem.REGULAR_QUADRATURE_ORDER)
+    touching = burton_miller.singular_pairs(grid, p1, bem.SINGULAR_QUADRATURE_ORDER)
+    return far, touching, bem_arrays.from_geometry(far, touching)
+
+
+@pytest.mark.parametrize("frequency_hz", [2000.0, 16000.0])
+def test_the_gpu_kernels_cpu_twin_equals_the_numba_assembly(frequency_hz, tmp_path):
+    """The array assembly of i/k W - K (far pairs in chunks, touching pairs by quadrature group) run on NumPy equals
+    the one-pass numba assembly to 1e-10 relative on a demo-sized head; the saved surface loads back the same."""
+    head, _ = demo_like_head()
+    far, touching, arrays = surface_of(head)
+    arrays.save(tmp_path / "surface.npz")
+    loaded = bem_arrays.SurfaceArrays.load(tmp_path / "surface.npz")
+    dev = bem_arrays.DeviceSurface(loaded, bem_arrays.numpy_backend())
+    k = 2 * np.pi * frequency_hz / 343.0
+    coupling = 1j / k
+    reference = burton_miller.assemble_far_pairs(far, k, coupling)
+    burton_miller.add_singular_pairs(reference, touching, far, k, coupling)
+    twin = bem_arrays.system_matrix(dev, k, coupling, with_mass=False, budget_bytes=50e6)
+    assert np.abs(twin - reference).max() < 1e-10 * np.abs(reference).max()
+
+
+def test_the_array_solve_equals_bempp_cl_operators_for_both_ears():
+    """Right-hand sides and potentials of the array code (numba backend) equal bempp-cl's own operators (the
+    opencl backend's path, here run by bempp-cl's numba kernels) to 1e-9 relative: both ears, 5 kHz."""
+    sphere = trimesh.creation.icosphere(subdivisions=2, radius=0.0875)
+    ears = [[int(np.argmin(np.linalg.norm(sphere.triangles_center - [0, side * 0.0875, 0], axis=1)))]
+            for side in (1, -1)]
+    points = np.random.default_rng(1).normal(size=(40, 3))
+    points = 1.2 * points / np.linalg.norm(points, axis=1, keepdims=True)
+    bempp = bem._bempp()
+    segments = np.zeros(len(sphere.faces), np.uint32)
+    segments[ears[0]] = 1
+    segments[ears[1]] = 2
+    grid, p1, mass, far, touching, arrays = bem._surface(bempp, sphere.vertices, sphere.faces, segments)
+    frequency, k = 5000.0, 2 * np.pi * 5000.0 / 343.0
+    system = burton_miller.assemble_far_pairs(far, k, 1j / k)
+    burton_miller.add_singular_pairs(system, touching, far, k, 1j / k)
+    np.add.at(system, (mass[0], mass[1]), 0.5 * mass[2])
+    reference = bem._opencl_sources(bempp, grid, p1, system.copy(), segments, [(ears[0], 0.1), (ears[1], 0.1)],
+                                    points, frequency, k, 1j / k, 1.2)
+    dev = bem_arrays.DeviceSurface(arrays, bem_arrays.numpy_backend())
+    twin = bem_arrays.solve_sources_arrays(dev, [(np.array(ears[0]), 0.1), (np.array(ears[1]), 0.1)], points,
+                                           frequency, 343.0, 1.2)
+    for a, b in zip(reference, twin):
+        assert np.abs(a - b).max() < 1e-9 * np.abs(a).max()
+
+
+def test_gpu_tests_skip_cleanly_without_a_gpu():
+    """Without CuPy and a GPU the cuda backend is never chosen by auto and its probe fails with a reason."""
+    if backends.gpu_seen():
+        pytest.skip("a GPU is here: benchmarks/gpu_solve.py measures it")
+    assert "cuda" not in backends.auto_candidates()
+    with pytest.raises(ImportError):
+        bem_arrays.cupy_backend()

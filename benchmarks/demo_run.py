@@ -52,6 +52,9 @@ def main() -> None:
         rows = list(csv.DictReader((results / "dataset_summary.csv").open()))
         recovery: dict[str, list[float]] = {}
         per_frequency = []
+        jobs = [json.loads(path.read_text()) for path in sorted(results.glob("*/hrtf/embedded.json"))]
+        backends = sorted({job.get("backend", {}).get("backend", job.get("device", "?")) for job in jobs})
+        probe_seconds = sum(job.get("backend", {}).get("probe_seconds", 0.0) for job in jobs)
         for row in rows:
             subject = row["subject"]
             truth = PinnaParameters.read(results / "demo_data" / subject / "truth_parameters.json")
@@ -68,7 +71,9 @@ def main() -> None:
                   f"{row['solve_seconds_ppm']} s (PPM); QE {float(row['qe_reference_percent']):.2f} -> "
                   f"{float(row['qe_ppm_percent']):.2f} %, PE {float(row['pe_reference_deg']):.2f} -> "
                   f"{float(row['pe_ppm_deg']):.2f} deg")
-        print(f"whole demo run: {seconds:.0f} s ({seconds / 60:.1f} min) for {len(rows)} subjects")
+        print(f"whole demo run: {seconds:.0f} s ({seconds / 60:.1f} min) for {len(rows)} subjects; embedded solver "
+              f"backend {', '.join(backends)} ({jobs[0].get('backend', {}).get('reason', '') if jobs else ''}), "
+              f"probes {probe_seconds:.1f} s")
         figures = {
             "seconds": round(seconds, 1), "subjects": len(rows),
             "align_median_mm": max(float(r["align_median_mm"]) for r in rows),
@@ -77,6 +82,7 @@ def main() -> None:
             "recovery_median_scale": round(max(recovery["scale"]), 4),
             "recovery_median_shape_key": round(max(recovery["shape"]), 3),
             "solve_seconds_per_frequency": round(max(per_frequency), 2),
+            "embedded_backend": ", ".join(backends), "backend_probe_seconds": round(probe_seconds, 2),
             "qe_reference_percent": [float(r["qe_reference_percent"]) for r in rows],
             "qe_ppm_percent": [float(r["qe_ppm_percent"]) for r in rows],
             "pe_reference_deg": [float(r["pe_reference_deg"]) for r in rows],

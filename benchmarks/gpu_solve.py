@@ -9,7 +9,9 @@ Three stages, so that the GPU machine needs neither bempp-cl nor any mesh librar
 2. ``solve`` (on the GPU): the twin check (the system matrix on CuPy against NumPy, same code), cuSOLVER's LU
    against PyTorch's, the sphere, then every head, all 40 frequencies, both in one process; pressures and
    per-phase seconds to ``--out``.
-3. ``report`` (here): per step the magnitude difference to NumCalc's committed steps over the 793 directions
+3. ``numcalc-sphere`` (here, optional, NumCalc installed): the same sphere by NumCalc, so the report can say which
+   solver is nearer the analytic series.
+4. ``report`` (here): per step the magnitude difference to NumCalc's committed steps over the 793 directions
    (median, p95, max dB), the sphere against the analytic series (and the CPU solver), and QE/PE by the paper's
    protocol (the NumCalc ``original`` as reference and template, S at 8 % QE).
 
@@ -200,6 +202,34 @@ def _lu_comparison(n: int) -> dict:
     return result
 
 
+# --- NumCalc on the sphere (CPU, NumCalc installed): which solver is nearer the series -------------------------
+
+def numcalc_sphere(inputs: Path, out: Path, numcalc: str | None) -> None:
+    """Solve the prepared sphere (same mesh, ear element, points and frequencies as the GPU's) with NumCalc."""
+    import trimesh  # noqa: PLC0415
+
+    from mesh2hrtf_io import sphere_grid, write_project  # noqa: PLC0415
+    from mesh2hrtf_io.numcalc import solve_project_numcalc  # noqa: PLC0415
+    from mesh2hrtf_io.project_reader import read_project  # noqa: PLC0415
+    from mesh2hrtf_io.results import read_eval_grid_pressure  # noqa: PLC0415
+
+    problem = np.load(inputs / "sphere_problem.npz")
+    sphere = trimesh.creation.icosphere(subdivisions=5, radius=SPHERE_RADIUS_M * 1000.0)
+    folder = out / "numcalc_sphere_project"
+    if not folder.is_dir():
+        write_project(folder, sphere.vertices, sphere.faces, {"left": np.asarray(problem["ear_elements"])},
+                      [sphere_grid("Directions", problem["points_m"])], list(problem["frequencies_hz"]),
+                      source_type="Left ear", speed_of_sound_m_s=343.0, density_kg_m3=1.2, title="sphere")
+    start = time.perf_counter()
+    solve_project_numcalc(folder, numcalc)
+    project = read_project(folder)
+    pressure = np.array([read_eval_grid_pressure(project.sources[0].folder, step, len(problem["points_m"]))
+                         for step in range(1, len(project.frequencies_hz) + 1)])
+    np.savez(out / "sphere_numcalc_pressures.npz", pressure=pressure, frequencies_hz=project.frequencies_hz,
+             seconds=time.perf_counter() - start)
+    shutil.rmtree(folder)
+
+
 # --- report (CPU, project installed) ----------------------------------------------------------------------------
 
 def _step_store_pressures(head: str) -> tuple[np.ndarray, list[float]]:
@@ -283,6 +313,20 @@ def report(inputs: Path, results: Path) -> dict:
         print(f"sphere ({int(sphere['n_vertices'])} vertices) {frequency:6.0f} Hz: |GPU - series| median "
               f"{np.median(error):.3f} dB, p95 {np.percentile(error, 95):.3f} dB, max {error.max():.3f} dB")
     figures["sphere_error_db"] = sphere_errors
+    if (results / "sphere_numcalc_pressures.npz").is_file():  # the same sphere by NumCalc (numcalc-sphere stage)
+        numcalc_sphere_data = np.load(results / "sphere_numcalc_pressures.npz")
+        numcalc_errors = {}
+        for frequency, pressure in zip(numcalc_sphere_data["frequencies_hz"], numcalc_sphere_data["pressure"]):
+            hrtf = pressure / free_field_reference(problem["points_m"], frequency, float(problem["ear_area_m2"]),
+                                                   343.0, 1.2)
+            analytic = rigid_sphere_hrtf(float(frequency), SPHERE_RADIUS_M, problem["points_m"], ear_direction, 343.0)
+            error = np.abs(20 * np.log10(np.abs(hrtf) / np.abs(analytic)))
+            numcalc_errors[f"{frequency:.0f}"] = {"median_db": round(float(np.median(error)), 3),
+                                                 "p95_db": round(float(np.percentile(error, 95)), 3),
+                                                 "max_db": round(float(error.max()), 3)}
+            print(f"sphere {frequency:6.0f} Hz: |NumCalc - series| median {np.median(error):.3f} dB, p95 "
+                  f"{np.percentile(error, 95):.3f} dB, max {error.max():.3f} dB")
+        figures["sphere_numcalc_error_db"] = numcalc_errors
     solved = [h for h in HEADS if (results / f"{h}_pressures.npz").is_file()]
     per_head = {}
     with tempfile.TemporaryDirectory() as tmp:
@@ -358,6 +402,8 @@ def report(inputs: Path, results: Path) -> dict:
                "numcalc_cpu_hours": round(main_head["numcalc_cpu_hours"], 2),
                "twin_max_relative_difference": figures["twin_max_relative_difference"],
                "sphere_max_p95_db": max(v["p95_db"] for v in sphere_errors.values()),
+               "sphere_numcalc_max_p95_db": (max(v["p95_db"] for v in figures["sphere_numcalc_error_db"].values())
+                                             if "sphere_numcalc_error_db" in figures else None),
                "heads_solved": solved}
     return summary
 
@@ -373,7 +419,9 @@ def gpu_here() -> bool:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("stage", nargs="?", choices=["all", "prepare", "solve", "report"], default="all")
+    parser.add_argument("stage", nargs="?", choices=["all", "prepare", "solve", "numcalc-sphere", "report"],
+                        default="all")
+    parser.add_argument("--numcalc", default=None, help="NumCalc binary for numcalc-sphere (default: PATH, .venv/bin)")
     parser.add_argument("--inputs", type=Path, default=ROOT / "results" / "gpu_solve_inputs")
     parser.add_argument("--out", type=Path, default=KEPT)
     parser.add_argument("--backend", choices=["cupy", "numpy"], default="cupy")
@@ -389,6 +437,8 @@ def main() -> None:
         prepare(args.inputs, heads)
     if args.stage in ("all", "solve"):
         solve(args.inputs, args.out, args.backend, args.budget_s, heads)
+    if args.stage == "numcalc-sphere":
+        numcalc_sphere(args.inputs, args.out, args.numcalc)
     if args.stage in ("all", "report"):
         print(json.dumps(report(args.inputs, args.out)))
 

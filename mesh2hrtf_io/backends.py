@@ -235,8 +235,10 @@ def choose_backend(requested: str = "auto", *, candidates: tuple[str, ...] | Non
     if requested != "auto":
         verdict = probe(requested, command=probe_command, timeout_s=timeout_s)
         if not verdict.ok:
+            needs = (" (the cuda backend needs an NVIDIA GPU and CuPy: pip install -e '.[gpu]')"
+                     if requested == "cuda" else "")
             raise Mesh2HrtfIoError(
-                f"embedded solver backend {requested!r} failed its probe on this machine ({verdict.reason}); set "
+                f"embedded solver backend {requested!r} failed its probe on this machine ({verdict.reason}){needs}; set "
                 f"hrtf.embedded_device: numba (or auto) in the config, or --config hrtf='{{embedded_device: numba}}'"
                 f" (verdict cached in {cache_dir() / CACHE_FILE}; delete it to probe again)")
         return Choice(requested, f"asked for; probe passed ({verdict.reason})", (verdict,))

@@ -72,6 +72,15 @@ def set_backend(device: str) -> None:
         _bempp().DEFAULT_DEVICE_INTERFACE = "opencl"
 
 
+def backend_choice_summary() -> dict:
+    """What :func:`use_device` chose and why, with the seconds its probes took in this process (0 when cached)."""
+    choice = _device_state.get("choice")
+    if choice is None:
+        return {"backend": current_backend(), "reason": "set directly", "probe_seconds": 0.0}
+    return {"backend": choice.backend, "reason": choice.reason,
+            "probe_seconds": round(sum(v.seconds for v in choice.verdicts if not v.cached), 2)}
+
+
 def current_backend() -> str:
     """The backend the next solve uses (numba unless :func:`use_device` or :func:`set_backend` chose another)."""
     return str(_device_state["device"] or "numba")
@@ -93,6 +102,7 @@ def use_device(device: str = "auto", threads: int | None = None) -> str:
         os.environ["POCL_MAX_PTHREAD_COUNT"] = str(int(threads))
     choice = choose_backend(device)
     set_backend(choice.backend)
+    _device_state["choice"] = choice
     log.info("embedded solver: %s (%s)%s", choice.backend, choice.reason, f", {threads} thread(s)" if threads else "")
     return choice.backend
 
@@ -187,10 +197,19 @@ class CostEstimate:
     seconds_per_frequency: float
 
 
-def estimate_cost(n_vertices: int, n_elements: int, n_points: int, n_ear_elements: int = 1) -> CostEstimate:
+def estimate_cost(n_vertices: int, n_elements: int, n_points: int, n_ear_elements: int = 1,
+                  backend: str = "numba") -> CostEstimate:
     """Dense Burton–Miller cost model: two dense P1 operators (double layer, hypersingular) of complex128,
     the right-hand side only on the ear elements, assembled on a 2-core machine, an LU factorisation, plus the
-    evaluation at ``n_points``. Constants measured on the example head (see SECONDS_PER_ENTRY)."""
+    evaluation at ``n_points``. Constants measured on the example head (see SECONDS_PER_ENTRY). ``backend``
+    'cuda': seconds and GPU memory of :mod:`mesh2hrtf_io.bem_arrays`'s model, measured on an H200."""
+    if backend == "cuda":
+        from . import bem_arrays  # noqa: PLC0415
+
+        return CostEstimate(n_vertices, n_elements,
+                            round(bem_arrays.gpu_memory_needed_bytes(n_vertices, bem_arrays.GPU_WORK_BUDGET_BYTES)
+                                  / 1e9, 3),
+                            round(bem_arrays.gpu_seconds_per_frequency(n_vertices, n_elements), 2))
     dense = 2 * n_vertices**2 + 2 * n_vertices * n_ear_elements
     memory = MEMORY_OVERHEAD * 16.0 * (dense + n_points * (n_vertices + n_ear_elements)) / 1e9
     seconds = SECONDS_PER_ENTRY * dense + LU_SECONDS_PER_CUBE * n_vertices**3 + 4e-8 * n_points * n_vertices + 2.0
@@ -245,8 +264,10 @@ def solve_sources(vertices_m: np.ndarray, faces: np.ndarray, sources: list[tuple
     array_sources = [(np.asarray(elements, np.int64), float(velocity)) for elements, velocity in sources]
     if backend == "cuda":
         # everything on the GPU: the same array code as the CPU twin (bem_arrays.py)
+        budget = bem_arrays.gpu_work_budget(arrays.dof_count)  # a clear error when the head does not fit
         pressures = bem_arrays.solve_sources_arrays(_device_surface(arrays, "cupy"), array_sources, points_m,
-                                                    frequency_hz, speed_of_sound_m_s, density_kg_m3)
+                                                    frequency_hz, speed_of_sound_m_s, density_kg_m3,
+                                                    budget_bytes=budget)
     else:
         # coupling * W - K in one pass for both operators (burton_miller.py): the element pairs sharing no vertex
         # with bempp-cl's Gauss rule, the touching ones with its singular rule; equal to bempp-cl's dense assembly
@@ -260,7 +281,7 @@ def solve_sources(vertices_m: np.ndarray, faces: np.ndarray, sources: list[tuple
         else:
             pressures = bem_arrays.solve_sources_arrays(_device_surface(arrays, "numpy"), array_sources, points_m,
                                                         frequency_hz, speed_of_sound_m_s, density_kg_m3,
-                                                        system=system)
+                                                        system=system, far_geometry=far_geometry)
     log.info("%.0f Hz: solved %d unknowns for %d source(s) in %.1f s (%s)", frequency_hz, p1.global_dof_count,
              len(sources), time.perf_counter() - start, backend)
     return pressures

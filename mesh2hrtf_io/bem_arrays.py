@@ -191,6 +191,48 @@ class DeviceSurface:
         return self._touch_sorted_test[lo:hi], self._touch_sorted_trial[lo:hi]
 
 
+#: GPU cost model, measured on an NVIDIA H200 (benchmarks/gpu_solve.py, SONICOM P143): the assembly takes
+#: 5.4e-9 s per element pair (31,466 elements: 5.33 s; 27,666: 4.13 s), cuSOLVER's complex LU 8e-14 s per n^3
+#: (n = 15,735: 0.31 s), the rest (right-hand sides, potentials at 793 points) about 0.1 s.
+GPU_SECONDS_PER_ELEMENT_PAIR = 5.4e-9
+GPU_LU_SECONDS_PER_CUBE = 8.0e-14
+#: Work arrays of the GPU assembly: up to this many bytes (more buys no speed: the chunks are already large)
+GPU_WORK_BUDGET_BYTES = 24e9
+#: The smallest work budget worth starting with (bytes): below it the chunks are too small to be efficient
+GPU_MIN_WORK_BYTES = 2e9
+
+
+def gpu_memory_needed_bytes(n_dofs: int, work_bytes: float = GPU_MIN_WORK_BYTES) -> float:
+    """GPU memory (bytes) a solve needs: the dense system and its column-major copy for the LU (16 n^2 each) plus
+    the assembly's work arrays."""
+    return 2 * 16.0 * n_dofs ** 2 + work_bytes
+
+
+def gpu_work_budget(n_dofs: int, source: str = "") -> float:
+    """Bytes the GPU assembly may use for its work arrays, from the memory free now; a clear error when the head
+    does not fit."""
+    import cupy  # noqa: PLC0415
+
+    from .errors import Mesh2HrtfIoError  # noqa: PLC0415
+
+    pool = cupy.get_default_memory_pool()
+    free, total = cupy.cuda.Device().mem_info
+    free += pool.free_bytes()
+    fixed = gpu_memory_needed_bytes(n_dofs, 0.0)
+    if free < gpu_memory_needed_bytes(n_dofs):
+        raise Mesh2HrtfIoError(
+            f"{source or 'the head'}: {n_dofs} vertices need {gpu_memory_needed_bytes(n_dofs) / 1e9:.1f} GB on the GPU "
+            f"(the dense system twice, {fixed / 1e9:.1f} GB, and {GPU_MIN_WORK_BYTES / 1e9:.0f} GB of work arrays), "
+            f"but {free / 1e9:.1f} of {total / 1e9:.1f} GB are free; use a coarser mesh, NumCalc (hrtf.solver: "
+            "numcalc), or a GPU with more memory")
+    return float(min(GPU_WORK_BUDGET_BYTES, 0.8 * (free - fixed)))
+
+
+def gpu_seconds_per_frequency(n_dofs: int, n_elements: int) -> float:
+    """Predicted GPU seconds of one frequency (all sources), :data:`GPU_SECONDS_PER_ELEMENT_PAIR`."""
+    return GPU_SECONDS_PER_ELEMENT_PAIR * n_elements ** 2 + GPU_LU_SECONDS_PER_CUBE * n_dofs ** 3 + 0.1
+
+
 def default_chunk(n_elements: int, q: int, budget_bytes: float) -> int:
     """Test elements per chunk of the far-pair assembly so that its ~14 complex (chunk, q, E, q) work arrays fit
     in ``budget_bytes``."""
@@ -466,47 +508,52 @@ def _add_rows(xp, target, index, values) -> None:
     scatter_add_complex(xp, target.reshape(-1), linear, xp.asarray(values, dtype=np.complex128).reshape(-1))
 
 
-def pressure_at_points(dev: DeviceSurface, points_m, coefficients, ear_elements: np.ndarray, wavenumber: float,
-                       normal_derivative: complex, budget_bytes: float = 0.25e9):
-    """Pressure (Pa) at points (m, shape (N, 3)): double layer potential of the P1 surface pressure minus single layer
-    potential of the ear's normal derivative, bempp-cl's Gauss rule on every element."""
+def pressure_at_points(dev: DeviceSurface, points_m, coefficients, ears: list[np.ndarray], wavenumber: float,
+                       normal_derivatives: list[complex], budget_bytes: float = 0.25e9):
+    """Pressure (Pa) of each source (S of them) at points (m, shape (N, 3)) -> (S, N): double layer potential of the
+    P1 surface pressure (``coefficients``, (n, S)) minus single layer potential of the source's normal derivative on
+    its ear elements, bempp-cl's Gauss rule on every element. The kernel is evaluated once for all sources."""
     xp = dev.backend.xp
     k = float(wavenumber)
     points = xp.asarray(points_m, dtype=np.float64)
     E, q = dev.points.shape[:2]
     # surface pressure at the Gauss points: sum_j shape[q, j] sign[b, j] u[dof[b, j]]
-    u_local = coefficients[dev.dofs] * dev.multipliers  # (E, 3) signed dof values per element corner
-    u_points = u_local @ dev.shape.T  # (E, q)
-    ear = xp.asarray(np.asarray(ear_elements, np.int64))
+    u_local = coefficients[dev.dofs] * dev.multipliers[:, :, None]  # (E, 3, S) signed dof values per corner
+    u_points = xp.einsum("qj,ejs->eqs", dev.shape, u_local)  # (E, q, S)
     y = dev.points.reshape(E * q, 3)
-    w = dev.weights.reshape(E * q)
     n_b = xp.repeat(dev.normals, q, axis=0)  # (E q, 3)
-    double_weights = (w * u_points.reshape(E * q))
-    y_ear = dev.points[ear].reshape(-1, 3)
-    w_ear = dev.weights[ear].reshape(-1)
-    chunk = int(max(1, budget_bytes // (16.0 * 8 * E * q)))
+    double_weights = dev.weights.reshape(E * q, 1) * u_points.reshape(E * q, -1)  # (E q, S)
+    ear_points = [dev.points[xp.asarray(np.asarray(ear, np.int64))].reshape(-1, 3) for ear in ears]
+    ear_weights = [dev.weights[xp.asarray(np.asarray(ear, np.int64))].reshape(-1) for ear in ears]
+    chunk = int(max(1, budget_bytes // (16.0 * 6 * E * q)))
     out = []
     for start in range(0, len(points), chunk):
         x = points[start:start + chunk]
-        d = y[None, :, :] - x[:, None, :]  # (c, E q, 3)
-        r = xp.sqrt((d * d).sum(axis=2))
-        green = xp.exp(1j * k * r) * (INV_4PI / r)
-        double = green * (1j * k * r - 1.0) / (r * r) * (d * n_b[None]).sum(axis=2)
-        field = double @ double_weights
-        d_ear = y_ear[None, :, :] - x[:, None, :]
-        r_ear = xp.sqrt((d_ear * d_ear).sum(axis=2))
-        single = (xp.exp(1j * k * r_ear) * (INV_4PI / r_ear)) @ w_ear
-        out.append(field - normal_derivative * single)
-    return xp.concatenate(out)
+        d0 = y[None, :, 0] - x[:, None, 0]  # (c, E q): y - x
+        d1 = y[None, :, 1] - x[:, None, 1]
+        d2 = y[None, :, 2] - x[:, None, 2]
+        r = xp.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+        normal = (d0 * n_b[None, :, 0] + d1 * n_b[None, :, 1] + d2 * n_b[None, :, 2]) / (r * r)
+        kr = k * r
+        double = xp.exp(1j * kr) * ((1j * kr - 1.0) * INV_4PI / r * normal)
+        field = double @ double_weights  # (c, S)
+        for index, (y_ear, w_ear) in enumerate(zip(ear_points, ear_weights)):
+            r_ear = xp.sqrt(((y_ear[None, :, :] - x[:, None, :]) ** 2).sum(axis=2))
+            single = (xp.exp(1j * k * r_ear) * (INV_4PI / r_ear)) @ w_ear
+            field[:, index] -= normal_derivatives[index] * single
+        out.append(field)
+    return xp.concatenate(out).T
 
 
 def solve_sources_arrays(dev: DeviceSurface, sources: list[tuple[np.ndarray, float]], points_m: np.ndarray,
                          frequency_hz: float, speed_of_sound_m_s: float, density_kg_m3: float,
-                         system=None, timings: dict | None = None, budget_bytes: float = 0.5e9) -> list[np.ndarray]:
+                         system=None, timings: dict | None = None, budget_bytes: float = 0.5e9,
+                         far_geometry=None) -> list[np.ndarray]:
     """Pressure (Pa, e^{-iωt}) at ``points_m`` for each source (ear element indices, normal velocity m/s): one
     system matrix and LU per frequency, every source a right-hand side. Returns host arrays. ``system``: a matrix
     assembled by another path (the CPU numba pass), used instead of assembling it here; ``timings``: filled with the
-    seconds of each phase (assembly, lu, rhs, solve, potential); ``budget_bytes``: memory of the work arrays."""
+    seconds of each phase (assembly, lu, rhs, solve, potential); ``budget_bytes``: memory of the work arrays;
+    ``far_geometry`` (:class:`burton_miller.FarFieldGeometry`, NumPy only): the potentials by its numba pass."""
     import time  # noqa: PLC0415
 
     from .errors import Mesh2HrtfIoError  # noqa: PLC0415
@@ -537,8 +584,25 @@ def solve_sources_arrays(dev: DeviceSurface, sources: list[tuple[np.ndarray, flo
     if not bool(backend.xp.isfinite(coefficients).all()):
         raise Mesh2HrtfIoError(f"the BEM system at {frequency_hz:g} Hz is singular (degenerate mesh?)")
     lap("solve")
-    pressures = [backend.to_host(pressure_at_points(dev, points_m, coefficients[:, index], elements, k, g,
-                                                    budget_bytes=budget_bytes / 2))
-                 for index, ((elements, _), g) in enumerate(zip(sources, derivatives))]
+    if far_geometry is not None and backend.name == "numpy":  # the CPU path: one numba pass (burton_miller.py)
+        fields = _numba_potentials(dev, far_geometry, points_m, coefficients, sources, derivatives, k)
+    else:
+        fields = backend.to_host(pressure_at_points(dev, points_m, coefficients, [e for e, _ in sources], k,
+                                                    derivatives, budget_bytes=budget_bytes / 2))
+    pressures = [fields[index] for index in range(len(sources))]
     lap("potential")
     return pressures
+
+
+def _numba_potentials(dev: DeviceSurface, far_geometry, points_m, coefficients, sources, derivatives,
+                      wavenumber: float) -> np.ndarray:
+    """(S, N) pressures by :func:`burton_miller.potentials`: the weights of each source at the Gauss points."""
+    from . import burton_miller  # noqa: PLC0415
+
+    E, q = dev.points.shape[:2]
+    u_local = coefficients[dev.surface.dofs] * dev.surface.multipliers[:, :, None]  # (E, 3, S)
+    surface_weights = np.einsum("qj,ejs->eqs", dev.surface.shape, u_local) * dev.surface.weights[:, :, None]
+    ear_weights = np.zeros((E, q, len(sources)), np.complex128)
+    for index, ((elements, _), g) in enumerate(zip(sources, derivatives)):
+        ear_weights[np.asarray(elements, np.int64), :, index] = g * dev.surface.weights[np.asarray(elements, np.int64)]
+    return burton_miller.potentials(far_geometry, points_m, surface_weights, ear_weights, wavenumber).T

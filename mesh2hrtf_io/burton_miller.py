@@ -279,3 +279,44 @@ def _singular_pairs(corners, integration_elements, normals, curls, test_points, 
                 curl_product = curls[a, i, 0] * curls[b, j, 0] + curls[a, i, 1] * curls[b, j, 1] \
                     + curls[a, i, 2] * curls[b, j, 2]
                 blocks[pair, i, j] = (coupling * curl_product * green_sum + products[i, j]) * scale
+
+
+def potentials(geometry: FarFieldGeometry, points_m: np.ndarray, surface_weights: np.ndarray,
+               ear_weights: np.ndarray, wavenumber: float) -> np.ndarray:
+    """(points, sources) complex: sum over the surface's Gauss points y of dG/dn_y(x, y) times ``surface_weights``
+    (elements, q, sources) minus sum of G(x, y) times ``ear_weights`` (elements, q, sources), at every point x
+    (metres): the double layer potential of each source's surface pressure and the single layer potential of its
+    ear's normal derivative, the weights carrying the Gauss weights (the CPU twin of bem_arrays.pressure_at_points,
+    one numba pass per point, parallel over points)."""
+    out = np.zeros((len(points_m), surface_weights.shape[2]), np.complex128)
+    _potentials(geometry.points, geometry.normals, np.ascontiguousarray(points_m, np.float64),
+                np.ascontiguousarray(surface_weights, np.complex128), np.ascontiguousarray(ear_weights, np.complex128),
+                float(wavenumber), out)
+    return out
+
+
+@numba.njit(parallel=True, cache=True, fastmath=True, boundscheck=False)
+def _potentials(points, normals, targets, surface_weights, ear_weights, wavenumber, out):  # pragma: no cover
+    n_elements, n_points = points.shape[0], points.shape[1]
+    n_sources = surface_weights.shape[2]
+    for t in numba.prange(targets.shape[0]):
+        x0, x1, x2 = targets[t, 0], targets[t, 1], targets[t, 2]
+        for e in range(n_elements):
+            any_ear = False
+            for s in range(n_sources):
+                for p in range(n_points):
+                    if ear_weights[e, p, s] != 0:
+                        any_ear = True
+            for p in range(n_points):
+                d0 = points[e, p, 0] - x0
+                d1 = points[e, p, 1] - x1
+                d2 = points[e, p, 2] - x2
+                r = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+                kr = wavenumber * r
+                green = (np.cos(kr) + 1j * np.sin(kr)) * (INV_4PI / r)
+                double = green * (1j * kr - 1.0) / (r * r) * (d0 * normals[e, 0] + d1 * normals[e, 1]
+                                                              + d2 * normals[e, 2])
+                for s in range(n_sources):
+                    out[t, s] += double * surface_weights[e, p, s]
+                    if any_ear:
+                        out[t, s] -= green * ear_weights[e, p, s]

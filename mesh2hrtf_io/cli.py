@@ -50,8 +50,10 @@ def _export(args) -> dict:
 
 def _solve(args) -> dict:
     if args.solver == "embedded":
+        from .bem import use_device  # noqa: PLC0415
         from .embedded import solve_project_embedded  # noqa: PLC0415
 
+        use_device(args.device)
         return solve_project_embedded(args.project, args.steps)
     from .numcalc import solve_project_numcalc  # noqa: PLC0415
 
@@ -68,7 +70,7 @@ def _collect(args) -> dict:
 def _cost(args) -> dict:
     from .cost import project_cost  # noqa: PLC0415
 
-    return project_cost(args.project, args.solver, args.numcalc).as_dict()
+    return project_cost(args.project, args.solver, args.numcalc, device=args.device).as_dict()
 
 
 def _spikes(args) -> dict:
@@ -82,7 +84,7 @@ def _spikes(args) -> dict:
 def _doctor(args) -> dict:
     from .doctor import doctor  # noqa: PLC0415
 
-    return doctor(args.numcalc)
+    return doctor(args.numcalc, probe=args.probe)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -107,6 +109,8 @@ def main(argv: list[str] | None = None) -> int:
         command = sub.add_parser(name, help=helptext)
         command.add_argument("project", type=Path)
         command.add_argument("--solver", choices=["embedded", "numcalc"], default="embedded")
+        command.add_argument("--device", choices=["auto", "numba", "opencl", "cuda"], default="auto",
+                             help="embedded solver's backend (mesh2hrtf_io/backends.py)")
         command.add_argument("--numcalc", default=None, help="NumCalc binary (default: PATH)")
         if name == "solve":
             command.add_argument("--steps", type=int, nargs="*", default=None, help="1-based steps (default: all)")
@@ -123,6 +127,8 @@ def main(argv: list[str] | None = None) -> int:
                         "that make a spike (default 6)")
     check = sub.add_parser("doctor", help="say which solver is usable here, and why not")
     check.add_argument("--numcalc", default=None, help="NumCalc binary to check (default: PATH, then .venv/bin)")
+    check.add_argument("--probe", action="store_true", help="probe the embedded solver's opencl and cuda backends "
+                       "now (child processes; verdicts cached per machine)")
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(message)s")
     handlers = {"export": _export, "solve": _solve, "collect": _collect, "cost": _cost, "doctor": _doctor,

@@ -46,18 +46,24 @@ def numcalc_seconds(n_elements: int, frequency_hz: float) -> float:
     return NUMCALC_SECONDS_PER_ELEMENT * n_elements * (1 + (frequency_hz / NUMCALC_REFERENCE_FREQUENCY_HZ) ** 2)
 
 
-def project_cost(folder: str | os.PathLike, solver: str = "embedded", numcalc: str | os.PathLike | None = None
-                 ) -> ProjectCost:
-    """Predict CPU-hours and peak RAM of solving the project at ``folder`` with ``solver``."""
+def project_cost(folder: str | os.PathLike, solver: str = "embedded", numcalc: str | os.PathLike | None = None,
+                 device: str = "auto") -> ProjectCost:
+    """Predict CPU-hours and peak RAM of solving the project at ``folder`` with ``solver`` (the embedded solver on
+    ``device``: 'cuda' gives GPU hours and GPU memory; anything else the 2-core CPU model)."""
     project = read_project(folder)
     n_points = len(project.evaluation_points_m)
     n_elements, n_vertices = len(project.faces), len(project.vertices_m)
     n_sources, frequencies = len(project.sources), project.frequencies_hz
     if solver == "embedded":
-        cost = estimate_cost(n_vertices, n_elements, n_points)
-        seconds = cost.seconds_per_frequency * len(frequencies) * n_sources
-        return ProjectCost(n_elements, n_vertices, n_points, n_sources, len(frequencies), solver,
-                           round(seconds / 3600, 3), cost.memory_gb_per_frequency, "dense operator model")
+        gpu = device == "cuda"
+        cost = estimate_cost(n_vertices, n_elements, n_points, backend="cuda" if gpu else "numba")
+        # on the GPU every source of a frequency shares one assembly and LU; the CPU model counts per source
+        seconds = cost.seconds_per_frequency * len(frequencies) * (1 if gpu else n_sources)
+        return ProjectCost(n_elements, n_vertices, n_points, n_sources, len(frequencies),
+                           "embedded (cuda)" if gpu else solver, round(seconds / 3600, 3),
+                           cost.memory_gb_per_frequency,
+                           "GPU memory model (bem_arrays, H200)" if gpu else "dense operator model",
+                           "GPU hours, model measured on an H200 (benchmarks/gpu_solve.py)" if gpu else "")
     if solver != "numcalc":
         raise ValueError(f"solver must be 'embedded' or 'numcalc', got {solver!r}")
     from .numcalc import NumCalcError, find_numcalc  # noqa: PLC0415

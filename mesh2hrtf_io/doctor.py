@@ -53,8 +53,16 @@ def embedded_status() -> dict:
             "verdict_cache": str(cache_dir() / CACHE_FILE)}
 
 
-def doctor(configured_numcalc: str | os.PathLike | None = None) -> dict:
-    """Status of both solvers and the one the workflow's default (hrtf.solver: numcalc) would use."""
+def doctor(configured_numcalc: str | os.PathLike | None = None, probe: bool = False) -> dict:
+    """Status of both solvers and the one the workflow's default (hrtf.solver: numcalc) would use. ``probe``: probe
+    the embedded solver's optional backends (opencl, and cuda where CuPy is installed) now, in child processes,
+    instead of only reporting cached verdicts."""
+    if probe:
+        from .backends import probe as probe_backend  # noqa: PLC0415
+
+        for backend in ("opencl", "cuda"):
+            if importlib.util.find_spec({"opencl": "pyopencl", "cuda": "cupy"}[backend]) is not None:
+                probe_backend(backend)
     numcalc, embedded = numcalc_status(configured_numcalc), embedded_status()
     advice = ("NumCalc is ready (hrtf.solver: numcalc)" if numcalc["usable"] else
               "only the embedded solver is usable: set hrtf.solver: embedded (small meshes), or install NumCalc"

@@ -92,10 +92,11 @@ def solve_embedded(projects: dict[str, str | os.PathLike], status_path: str | os
     once for all of them; write a summary JSON per project (steps solved and restored, seconds per step and per
     frequency, the first including the kernel builds) and the job's total seconds and backend. With ``stores``
     (name -> folder), stored steps are restored first and solved ones copied there. ``threads``: threads of the assembly (default: all cores); ``device``: bempp-cl's
-    backend, 'auto' (OpenCL on the CPU when pyopencl has a device, else numba), 'opencl' or 'numba'."""
+    backend, 'auto' (cuda where a GPU passes its probe, else numba), 'numba', 'opencl' or 'cuda'
+    (:mod:`mesh2hrtf_io.backends`)."""
     import time  # noqa: PLC0415
 
-    from .bem import use_device  # noqa: PLC0415
+    from .bem import backend_choice_summary, use_device  # noqa: PLC0415
     from .embedded import solve_project_embedded  # noqa: PLC0415
     from .step_store import project_fingerprint, restore_step, save_step  # noqa: PLC0415
 
@@ -116,11 +117,12 @@ def solve_embedded(projects: dict[str, str | os.PathLike], status_path: str | os
         for source, fingerprint in fingerprints.items():
             for step in steps:
                 save_step(project, source, step, store, fingerprint,
-                          {"solver": "embedded", "seconds": summary["measured_seconds_per_step"] or 0.0})
+                          {"solver": f"embedded ({device})", "seconds": summary["measured_seconds_per_step"] or 0.0})
         summaries[name] = {"project": str(project), **summary}
     write_text_atomic(status_path, json.dumps({"projects": summaries,
                                                "seconds": round(time.perf_counter() - start, 2),
-                                               "threads": threads, "device": device}, indent=2) + "\n")
+                                               "threads": threads, "device": device,
+                                               "backend": backend_choice_summary()}, indent=2) + "\n")
 
 
 def collect(project: str | os.PathLike, hrtf_path: str | os.PathLike, hrir_path: str | os.PathLike,

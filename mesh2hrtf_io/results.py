@@ -42,6 +42,22 @@ def step_status(source_folder: str | os.PathLike, step: int) -> dict | None:
         return None
 
 
+SOLVER_FILE = "solver.txt"
+#: What made a step without a solver mark: NumCalc writes none.
+DEFAULT_SOLVER = "NumCalc"
+
+
+def write_solver_mark(source_folder: str | os.PathLike, step: int, solver: str) -> Path:
+    """Record which solver made a step (``be.out/be.<step>/solver.txt``, e.g. 'embedded (cuda)')."""
+    return write_text_atomic(step_folder(source_folder, step) / SOLVER_FILE, solver.strip() + "\n")
+
+
+def step_solver(source_folder: str | os.PathLike, step: int) -> str:
+    """Which solver made a step: its mark, or NumCalc where there is none."""
+    path = step_folder(source_folder, step) / SOLVER_FILE
+    return path.read_text().strip() if path.is_file() else DEFAULT_SOLVER
+
+
 def write_eval_grid_pressure(source_folder: str | os.PathLike, step: int, node_ids: np.ndarray,
                              pressure: np.ndarray, version: str = "Mesh2HRTF 1.2.4") -> Path:
     """Write complex pressures (Pa, e^{-iωt}) at the grid nodes in NumCalc's format, atomically."""

@@ -118,6 +118,15 @@ def _write(sofa, path: Path) -> Path:
     return path
 
 
+def project_solver(project: Project) -> str:
+    """Which solver(s) made a project's steps: 'NumCalc', 'embedded (cuda)', ... (several joined by ' + ')."""
+    from .results import step_solver  # noqa: PLC0415
+
+    solvers = sorted({step_solver(source.folder, step) for source in project.sources
+                      for step in range(1, len(project.frequencies_hz) + 1)})
+    return " + ".join(solvers)
+
+
 def collect_sofa(folder: str | os.PathLike, output_folder: str | os.PathLike | None = None,
                  hrirs: bool | None = None, hrir_sampling_rate_hz: float = HRIR_RATE_HZ,
                  hrir_samples: int = HRIR_SAMPLES) -> list[Path]:
@@ -131,6 +140,7 @@ def collect_sofa(folder: str | os.PathLike, output_folder: str | os.PathLike | N
     two_ears = len(project.sources) == 2
     if hrirs is None:
         hrirs = bool(project.parameters.get("computeHRIRs", False))
+    solver = project_solver(project)
     written, offset = [], 0
     for grid in project.grids:
         block = pressure[offset:offset + len(grid.points_m)]
@@ -139,7 +149,8 @@ def collect_sofa(folder: str | os.PathLike, output_folder: str | os.PathLike | N
         sofa = _sofa("SimpleFreeFieldHRTF" if two_ears else "GeneralTF", project, grid.points_m, title)
         sofa.Data_Real, sofa.Data_Imag = block.real, block.imag
         sofa.N = project.frequencies_hz
-        sofa.GLOBAL_Comment += f"; solved at {describe_set(project.frequencies_hz)}"
+        sofa.GLOBAL_Comment += f"; solved at {describe_set(project.frequencies_hz)} by {solver}"
+        sofa.add_attribute("GLOBAL_NumericalSolver", solver)
         written.append(_write(sofa, output / f"HRTF_{grid.name}.sofa"))
         if hrirs:
             if not project.parameters.get("reference", True):
@@ -153,7 +164,8 @@ def collect_sofa(folder: str | os.PathLike, output_folder: str | os.PathLike | N
                                         f"{project.folder} grid {grid.name}")
                 how = f"rebuilt from {describe_set(project.frequencies_hz)}: {METHOD_NOTE}"
             sofa = _sofa("SimpleFreeFieldHRIR" if two_ears else "GeneralFIR", project, grid.points_m, title)
-            sofa.GLOBAL_Comment += f"; HRIRs: {how}; delayed by {HRIR_LEAD_S * 1000:.4f} ms"
+            sofa.GLOBAL_Comment += f"; HRIRs: {how}; delayed by {HRIR_LEAD_S * 1000:.4f} ms; solved by {solver}"
+            sofa.add_attribute("GLOBAL_NumericalSolver", solver)
             sofa.Data_IR, sofa.Data_SamplingRate = impulse, rate
             sofa.Data_Delay = np.zeros((1, len(project.sources)))
             written.append(_write(sofa, output / f"HRIR_{grid.name}.sofa"))

@@ -30,7 +30,7 @@ import numpy as np
 from ppm.atomic import atomic_path, write_text_atomic
 
 from .project_reader import read_project
-from .results import read_eval_grid_pressure, step_is_complete, write_eval_grid_pressure
+from .results import read_eval_grid_pressure, step_is_complete, write_eval_grid_pressure, write_solver_mark
 
 log = logging.getLogger(__name__)
 HEAD_FILE = "head.ply"
@@ -91,9 +91,12 @@ def restore_step(project_dir: str | os.PathLike, source: int, step: int, store: 
         if str(stored["fingerprint"]) != (fingerprint or project_fingerprint(project_dir, source)):
             return False
         nodes, pressure = stored["node_ids"], stored["pressure"]
+        status = json.loads(str(stored["status_json"])) if "status_json" in stored.files else {}
     if step_is_complete(folder, step, len(nodes)):
         return True
     write_eval_grid_pressure(folder, step, nodes, pressure)
+    if str(status.get("solver", "")).startswith("embedded"):
+        write_solver_mark(folder, step, status["solver"])
     return True
 
 

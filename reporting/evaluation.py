@@ -25,7 +25,7 @@ from ppm.atomic import atomic_path, write_text_atomic
 #: Columns of summary.csv, in order (the issue's, then provenance).
 COLUMNS = ("subject", "condition", "qe_percent", "pe_deg", "eb_deg", "sensitivity_db", "delta_qe_pp", "delta_pe_deg",
            "delta_qe_vs_original_pp", "delta_pe_vs_original_deg", "distance_median_mm", "distance_p95_mm",
-           "reverse_median_mm", "reverse_p95_mm", "n_frequencies", "solve_cpu_hours", "n_elements", "steps_solved_here", "steps_restored", "head_sha256")
+           "reverse_median_mm", "reverse_p95_mm", "n_frequencies", "solve_cpu_hours", "n_elements", "steps_solved_here", "steps_restored", "head_sha256", "solver")
 
 #: The evaluation's goals: |ΔQE| (pp) and |ΔPE| (deg) against the reference, per condition (and, where the
 #: subject has the condition "original", against this pipeline's own solve of the unchanged head).
@@ -83,18 +83,25 @@ def solve_cost(status_files: list[str | os.PathLike], store: str | os.PathLike |
     the step store (where they were solved), so the total is the CPU time of the result, wherever it was made."""
     from mesh2hrtf_io.step_store import solve_seconds, stored_status  # noqa: PLC0415
 
-    seconds, solved, restored = 0.0, 0, 0
+    seconds, solved, restored, solvers = 0.0, 0, 0, set()
     for path in map(Path, status_files):
         statuses = json.loads(path.read_text())
         source = int(path.parent.name.split("_")[-1]) if path.parent.name.startswith("source_") else 1
+        if "projects" in statuses:  # the embedded solver's job status
+            solvers.add(f"embedded ({statuses.get('backend', {}).get('backend', statuses.get('device', '?'))})")
         for status in statuses.get("steps", [statuses]):
             if "restored_from" in status:
                 restored += 1
-                seconds += solve_seconds(stored_status(status["restored_from"], source, status["step"]))
+                kept = stored_status(status["restored_from"], source, status["step"])
+                seconds += solve_seconds(kept)
+                solvers.add((kept or {}).get("solver") or status.get("solver") or "NumCalc")
             else:
                 solved += 1
                 seconds += solve_seconds(status)
-    return {"seconds": seconds, "steps_solved_here": solved, "steps_restored": restored}
+                if "projects" not in statuses:
+                    solvers.add(status.get("solver") or "NumCalc")
+    return {"seconds": seconds, "steps_solved_here": solved, "steps_restored": restored,
+            "solver": " + ".join(sorted(solvers))}
 
 
 def evaluation_rows(results: str | os.PathLike, subjects: list[str], conditions: dict[str, list[str]],
@@ -136,7 +143,7 @@ def evaluation_rows(results: str | os.PathLike, subjects: list[str], conditions:
                            reverse_p95_mm=distances["model_to_target"]["p95_mm"],
                            solve_cpu_hours=round(cost["seconds"] / 3600.0, 3), n_elements=len(project.faces),
                            steps_solved_here=cost["steps_solved_here"], steps_restored=cost["steps_restored"],
-                           head_sha256=file_sha256(heads[subject, condition])[:16])
+                           head_sha256=file_sha256(heads[subject, condition])[:16], solver=cost["solver"])
             rows.append(row)
     return rows
 

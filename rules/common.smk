@@ -54,6 +54,20 @@ else:
     SUBJECTS = _subjects_of(DATA_ROOT)
 
 
+def _check_embedded_backend():
+    """An explicit hrtf.embedded_device (opencl, cuda) must have passed its probe on this machine before any job
+    starts (mesh2hrtf_io/backends.py; the verdict is cached, so only the first run of a machine probes)."""
+    hrtf = config["hrtf"]
+    device = hrtf.get("embedded_device", "auto")
+    if hrtf["enabled"] and hrtf["solver"] == "embedded" and device in ("opencl", "cuda"):
+        from mesh2hrtf_io.backends import choose_backend
+
+        choose_backend(device)  # raises with the probe's failure and the setting to change
+
+
+_check_embedded_backend()
+
+
 wildcard_constraints:
     subject="|".join(SUBJECTS),
     variant="reference|original|ppm|own_pinna|default_ppm",
@@ -260,14 +274,25 @@ def _embedded_costs(projects) -> list | None:
     from mesh2hrtf_io.bem import estimate_cost
     from mesh2hrtf_io.project_reader import read_project
 
+    backend = "cuda" if embedded_on_gpu() else "numba"
     costs = []
     for project in projects:
         if not (Path(project) / "parameters.json").is_file():
             return None
         solved = read_project(project)
-        costs.append((estimate_cost(len(solved.vertices_m), len(solved.faces), len(solved.evaluation_points_m)),
-                      len(solved.frequencies_hz)))
+        costs.append((estimate_cost(len(solved.vertices_m), len(solved.faces), len(solved.evaluation_points_m),
+                                    backend=backend), len(solved.frequencies_hz)))
     return costs
+
+
+def embedded_on_gpu() -> bool:
+    """Whether the embedded solver is asked to run on a GPU (hrtf.embedded_device: cuda)."""
+    return config["hrtf"].get("embedded_device", "auto") == "cuda"
+
+
+def embedded_gpus(wildcards) -> int:
+    """GPUs an embedded-solver job asks a cluster for: 1 with hrtf.embedded_device cuda, else 0."""
+    return 1 if embedded_on_gpu() else 0
 
 
 def embedded_runtime_min(wildcards, input, attempt):
@@ -282,7 +307,10 @@ def embedded_runtime_min(wildcards, input, attempt):
 
 
 def embedded_mem_mb(wildcards, input):
-    """Memory of the embedded solver (its largest head, one at a time) from its dense-operator model."""
+    """Memory of the embedded solver (its largest head, one at a time) from its dense-operator model; on a GPU the
+    dense system lives in the GPU's memory (checked there before the first frequency) and the host needs little."""
+    if embedded_on_gpu():
+        return 8192
     costs = _embedded_costs(input.projects)
     if costs is None:
         return 4096

@@ -65,6 +65,7 @@ rule solve_embedded:
     resources:
         mem_mb=embedded_mem_mb,
         runtime=embedded_runtime_min,
+        gpu=embedded_gpus,
     script:
         "../workflow/scripts/solve_embedded.py"
 

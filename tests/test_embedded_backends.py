@@ -178,3 +178,48 @@ def test_gpu_tests_skip_cleanly_without_a_gpu():
     assert "cuda" not in backends.auto_candidates()
     with pytest.raises(ImportError):
         bem_arrays.cupy_backend()
+
+
+def test_the_workflow_stops_before_any_job_when_the_explicit_backend_failed_its_probe(tmp_path, monkeypatch):
+    """hrtf.embedded_device: opencl with a failed verdict for this machine (cached, as a probe that died leaves it):
+    the demo run stops at once, naming the failure and the setting; nothing is made."""
+    import shutil
+    import subprocess
+
+    from conftest import ROOT
+
+    cache_folder = tmp_path / "cache"
+    monkeypatch.setenv("PPM_HRTF_CACHE_DIR", str(cache_folder))
+    assert not backends.probe("opencl", command=ABORTING_PROBE).ok
+    work = tmp_path / "project"
+    for folder in ("workflow", "rules", "config"):
+        shutil.copytree(ROOT / folder, work / folder)
+    (work / "config" / "opencl.yaml").write_text("hrtf:\n  embedded_device: opencl\n")
+    done = subprocess.run([sys.executable, "-m", "snakemake", "--cores", "1", "--configfile",
+                           str(work / "config" / "config.yaml"), str(work / "config" / "opencl.yaml")],
+                          cwd=work, capture_output=True, text=True, timeout=300,
+                          env={**__import__("os").environ, "PPM_HRTF_CACHE_DIR": str(cache_folder),
+                               "PYTHONPATH": str(ROOT)})
+    output = done.stdout + done.stderr
+    assert done.returncode != 0
+    assert "SIGABRT" in output and "embedded_device: numba" in output
+    assert not (work / "results").exists()
+
+
+def test_the_gpu_evaluation_config_refuses_a_machine_without_a_gpu_before_any_job(tmp_path, sonicom):
+    """config/paper_sonicom_gpu.yaml (every head by the embedded solver on cuda): where the cuda probe fails (no
+    CuPy or no GPU), even a dry run stops at once with the probe's reason and what to install or set."""
+    import os
+    import subprocess
+
+    from conftest import ROOT
+
+    if backends.gpu_seen():
+        pytest.skip("a GPU is here")
+    done = subprocess.run([sys.executable, "-m", "snakemake", "-n", "--cores", "1", "--configfile",
+                           "config/paper_sonicom.yaml", "config/paper_sonicom_gpu.yaml"], cwd=ROOT,
+                          capture_output=True, text=True, timeout=600,
+                          env={**os.environ, "PPM_HRTF_CACHE_DIR": str(tmp_path / "cache")})
+    output = done.stdout + done.stderr
+    assert done.returncode != 0
+    assert "'cuda' failed its probe" in output and "pip install -e '.[gpu]'" in output

@@ -135,6 +135,9 @@ def test_embedded_solver_solves_a_project_and_resumes(tmp_path, caplog):
         for k, f in enumerate(frequencies):
             analytic = rigid_sphere_hrtf(f, RADIUS_MM / 1000, grid.points_m, _ear_direction(mesh, ears[side]), 343.0)
             assert np.abs(20 * np.log10(np.abs(data[:, index, k] / analytic))).max() < 1.0
+    # which solver made the file is in its metadata
+    assert hrtf.GLOBAL_NumericalSolver == f"embedded ({summary['backend']})" and summary["backend"] == "numba"
+    assert "solved by" in hrtf.GLOBAL_Comment or "by embedded" in hrtf.GLOBAL_Comment
     assert solve_project_embedded(tmp_path / "p")["steps_solved"] == 0
     (step_folder(tmp_path / "p" / "NumCalc" / "source_2", 2) / "pEvalGrid").unlink()
     assert solve_project_embedded(tmp_path / "p")["steps_solved"] == 1
@@ -145,6 +148,12 @@ def test_cost_estimate_and_cli(tmp_path, capsys, monkeypatch):
     cost = project_cost(tmp_path / "p", "embedded")
     assert cost.n_sources == 2 and cost.n_frequencies == len(FREQUENCIES) and cost.n_elements == 320
     assert 0 < cost.cpu_hours < 1 and 0 < cost.peak_memory_gb < 1
+    # on a GPU (model measured on an H200): one assembly and LU per frequency for both ears, GPU memory
+    gpu = project_cost(tmp_path / "p", "embedded", device="cuda")
+    assert gpu.solver == "embedded (cuda)" and gpu.cpu_hours < cost.cpu_hours and "H200" in gpu.time_source
+    from mesh2hrtf_io.bem import estimate_cost
+    head = estimate_cost(15735, 31466, 793, backend="cuda")  # P143's head: 5.7 s per frequency measured
+    assert 4.5 < head.seconds_per_frequency < 7.0
     monkeypatch.setenv("PATH", str(tmp_path / "empty"))
     monkeypatch.setattr("mesh2hrtf_io.numcalc.venv_numcalc", lambda: tmp_path / "nowhere" / "NumCalc")
     numcalc_cost = project_cost(tmp_path / "p", "numcalc")

@@ -200,13 +200,20 @@ def _now() -> str:
     return datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
 
 
+def installed_module(name: str) -> bool:
+    """Whether a top-level module is installed, looked up on sys.path (not in this process's loaded modules: the
+    embedded solver keeps pyopencl out of processes that do not use it)."""
+    import importlib.machinery  # noqa: PLC0415
+
+    return importlib.machinery.PathFinder.find_spec(name) is not None
+
+
 def gpu_seen() -> bool:
     """A CUDA GPU may be here: CuPy is installed and the driver's device node or nvidia-smi exists (nothing is
     initialised: the probe does that in its child)."""
-    import importlib.util  # noqa: PLC0415
     import shutil  # noqa: PLC0415
 
-    if importlib.util.find_spec("cupy") is None:
+    if not installed_module("cupy"):
         return False
     return Path("/dev/nvidia0").exists() or shutil.which("nvidia-smi") is not None
 

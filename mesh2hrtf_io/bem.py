@@ -67,6 +67,9 @@ def set_backend(device: str) -> None:
     probe's child and tests; the workflow goes through :func:`use_device`)."""
     if device not in DEVICES:
         raise Mesh2HrtfIoError(f"embedded device must be one of {', '.join(DEVICES)}; got {device!r}")
+    if device == "opencl" and _device_state.get("opencl_blocked"):
+        raise Mesh2HrtfIoError("the opencl backend must be chosen before the process's first solve (bempp-cl was "
+                               "loaded without OpenCL); choose it first, or use numba")
     _device_state["device"] = device
     if device == "opencl":
         _bempp().DEFAULT_DEVICE_INTERFACE = "opencl"
@@ -116,6 +119,13 @@ def _bempp():
     import io  # noqa: PLC0415
     import shutil  # noqa: PLC0415
 
+    import sys  # noqa: PLC0415
+
+    if _device_state["device"] != "opencl" and "pyopencl" not in sys.modules:
+        # bempp-cl imports pyopencl when it can; without the opencl backend nothing of pocl is loaded into this
+        # process (its compiler aborts on some CPUs), and bempp-cl runs without OpenCL
+        sys.modules["pyopencl"] = None
+        _device_state["opencl_blocked"] = True
     try:
         with contextlib.redirect_stdout(io.StringIO()):
             import bempp_cl.api as bempp  # noqa: PLC0415

@@ -1,10 +1,10 @@
 """Which BEM solver is usable here, and why not: ``m2h doctor``."""
 from __future__ import annotations
 
-import importlib.util
 import os
 import subprocess
 
+from .backends import installed_module
 from .numcalc import INSTALL_HINT, NumCalcError, find_numcalc
 
 
@@ -29,15 +29,15 @@ def embedded_status() -> dict:
     """The embedded solver and each of its backends (numba, opencl, cuda): installed, and the cached verdict of its
     probe on this machine (mesh2hrtf_io/backends.py; None: not probed yet), and what ``auto`` would choose now
     without probing. Nothing is imported that could abort: the probes run in child processes."""
-    from .backends import BACKENDS, auto_candidates, cache_dir, CACHE_FILE, cached_verdict  # noqa: PLC0415
+    from .backends import BACKENDS, CACHE_FILE, auto_candidates, cache_dir, cached_verdict  # noqa: PLC0415
 
-    missing = [name for name in ("bempp_cl", "numba") if importlib.util.find_spec(name) is None]
+    missing = [name for name in ("bempp_cl", "numba") if not installed_module(name)]
     if missing:
         return {"usable": False, "why": f"{', '.join(missing)} not installed; run scripts/setup.sh"}
     needs = {"numba": (), "opencl": ("pyopencl",), "cuda": ("cupy",)}
     states = {}
     for backend in BACKENDS:
-        absent = [name for name in needs[backend] if importlib.util.find_spec(name) is None]
+        absent = [name for name in needs[backend] if not installed_module(name)]
         verdict = None if backend == "numba" or absent else cached_verdict(backend)
         states[backend] = {
             "installed": not absent,
@@ -61,7 +61,7 @@ def doctor(configured_numcalc: str | os.PathLike | None = None, probe: bool = Fa
         from .backends import probe as probe_backend  # noqa: PLC0415
 
         for backend in ("opencl", "cuda"):
-            if importlib.util.find_spec({"opencl": "pyopencl", "cuda": "cupy"}[backend]) is not None:
+            if installed_module({"opencl": "pyopencl", "cuda": "cupy"}[backend]):
                 probe_backend(backend)
     numcalc, embedded = numcalc_status(configured_numcalc), embedded_status()
     advice = ("NumCalc is ready (hrtf.solver: numcalc)" if numcalc["usable"] else

@@ -217,15 +217,22 @@ def gpu_work_budget(n_dofs: int, source: str = "") -> float:
 
     pool = cupy.get_default_memory_pool()
     free, total = cupy.cuda.Device().mem_info
-    free += pool.free_bytes()
+    return work_budget_for(n_dofs, free + pool.free_bytes(), total, source)
+
+
+def work_budget_for(n_dofs: int, free_bytes: float, total_bytes: float, source: str = "") -> float:
+    """Bytes for the assembly's work arrays with ``free_bytes`` of GPU memory free, or a clear error when the dense
+    system and the smallest useful work budget do not fit."""
+    from .errors import Mesh2HrtfIoError  # noqa: PLC0415
+
     fixed = gpu_memory_needed_bytes(n_dofs, 0.0)
-    if free < gpu_memory_needed_bytes(n_dofs):
+    if free_bytes < gpu_memory_needed_bytes(n_dofs):
         raise Mesh2HrtfIoError(
             f"{source or 'the head'}: {n_dofs} vertices need {gpu_memory_needed_bytes(n_dofs) / 1e9:.1f} GB on the GPU "
             f"(the dense system twice, {fixed / 1e9:.1f} GB, and {GPU_MIN_WORK_BYTES / 1e9:.0f} GB of work arrays), "
-            f"but {free / 1e9:.1f} of {total / 1e9:.1f} GB are free; use a coarser mesh, NumCalc (hrtf.solver: "
-            "numcalc), or a GPU with more memory")
-    return float(min(GPU_WORK_BUDGET_BYTES, 0.8 * (free - fixed)))
+            f"but {free_bytes / 1e9:.1f} of {total_bytes / 1e9:.1f} GB are free; use a coarser mesh, NumCalc "
+            "(hrtf.solver: numcalc), or a GPU with more memory")
+    return float(min(GPU_WORK_BUDGET_BYTES, 0.8 * (free_bytes - fixed)))
 
 
 def gpu_seconds_per_frequency(n_dofs: int, n_elements: int) -> float:

@@ -281,7 +281,7 @@ def read_summary_csv(path: str | os.PathLike) -> list[dict]:
         for raw in csv.DictReader(handle):
             row = {}
             for key, value in raw.items():
-                if key in ("subject", "condition", "head_sha256"):
+                if key in ("subject", "condition", "head_sha256", "solver"):
                     row[key] = value
                 else:
                     row[key] = float(value) if value != "" else None

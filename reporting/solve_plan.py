@@ -136,3 +136,31 @@ def plan_text(rows: list[dict], cores: int) -> str:
         lines.append(f"  in all {to_solve} steps; no stored steps to estimate their time from yet "
                      "(each job's memory comes from NumCalc -estimate_ram)")
     return "\n".join(lines)
+
+
+def embedded_plan_text(heads: list[tuple[str, str, str | None]], device: str, n_frequencies: int) -> str:
+    """The embedded solver's plan: per head (subject, variant, its mesh in mm where it exists before the run) the
+    vertices and the predicted seconds per frequency on ``device`` ('cuda': the GPU model measured on an H200; else
+    the 2-core CPU model), and the total. Heads built during the run are estimated after their export."""
+    import trimesh  # noqa: PLC0415
+
+    from mesh2hrtf_io.bem import estimate_cost  # noqa: PLC0415
+
+    backend = "cuda" if device == "cuda" else "numba"
+    where = "on the GPU (model of an H200)" if backend == "cuda" else "on the CPU (2-core model)"
+    lines = [f"Embedded solver plan, hrtf.embedded_device: {device}, {n_frequencies} frequencies per head, {where}:"]
+    total, unknown = 0.0, 0
+    for subject, variant, path in heads:
+        if not path or not Path(path).is_file():
+            unknown += 1
+            lines.append(f"  {subject} {variant}: head built during the run, estimated after its export")
+            continue
+        mesh = trimesh.load(path, process=False, force="mesh")
+        cost = estimate_cost(len(mesh.vertices), len(mesh.faces), 0, backend=backend)
+        seconds = cost.seconds_per_frequency * n_frequencies
+        total += seconds
+        lines.append(f"  {subject} {variant}: {len(mesh.vertices)} vertices, ~{cost.seconds_per_frequency:.1f} s per "
+                     f"frequency (all ears), ~{seconds / 60:.1f} min, {cost.memory_gb_per_frequency:.1f} GB")
+    lines.append(f"  in all ~{total / 3600:.2f} h for the heads known now" + (f", {unknown} more after their export"
+                                                                               if unknown else ""))
+    return "\n".join(lines)

@@ -430,9 +430,16 @@ def get_final_output():
 
 
 def solve_plan_text() -> str | None:
-    """The NumCalc solve plan of this run (reporting/solve_plan.py), or None when no NumCalc solve is configured."""
-    if not config["hrtf"]["enabled"] or config["hrtf"]["solver"] != "numcalc":
+    """The solve plan of this run (reporting/solve_plan.py): NumCalc's steps to solve and restore, or the embedded
+    solver's heads with their predicted time on the configured backend; None when nothing is solved."""
+    if not config["hrtf"]["enabled"]:
         return None
+    if config["hrtf"]["solver"] == "embedded":
+        from reporting.solve_plan import embedded_plan_text
+
+        heads = [(subject, variant, head_mesh_of(subject, variant))
+                 for subject in SUBJECTS for variant in solved_variants(subject)]
+        return embedded_plan_text(heads, config["hrtf"].get("embedded_device", "auto"), len(hrtf_frequencies()))
     from reporting.solve_plan import plan_rows, plan_text
 
     heads = [(subject, variant) for subject in SUBJECTS for variant in solved_variants(subject)]

@@ -223,3 +223,16 @@ def test_the_gpu_evaluation_config_refuses_a_machine_without_a_gpu_before_any_jo
     output = done.stdout + done.stderr
     assert done.returncode != 0
     assert "'cuda' failed its probe" in output and "pip install -e '.[gpu]'" in output
+
+
+def test_a_head_too_large_for_the_gpu_is_refused_with_the_sizes():
+    """The GPU memory check (before the first frequency): P143's 15,735-vertex head fits an 80 GB card with the full
+    work budget; on a 16 GB card with 8 GB free it is refused, naming what it needs and the alternatives."""
+    budget = bem_arrays.work_budget_for(15735, 79e9, 80e9)
+    assert budget == bem_arrays.GPU_WORK_BUDGET_BYTES
+    assert 2 * 16 * 15735**2 + budget < 79e9
+    with pytest.raises(Mesh2HrtfIoError) as error:
+        bem_arrays.work_budget_for(15735, 8e9, 16e9, source="P143 original")
+    message = str(error.value)
+    assert "P143 original" in message and "9.9 GB" in message and "8.0 of 16.0 GB" in message
+    assert "NumCalc" in message and "coarser mesh" in message

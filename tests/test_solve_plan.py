@@ -1,5 +1,6 @@
 """The NumCalc solve plan printed before a run: steps stored vs to solve, and solver hours estimated from the
 committed step store (evaluation/sonicom/steps), whose heads took 1.8-3.9 CPU hours each."""
+import re
 import shutil
 
 import numpy as np
@@ -91,3 +92,18 @@ def test_steps_stored_for_an_earlier_head_count_as_to_solve(tmp_path):
     # the old head rebuilt: its 4 remaining steps are restorable, the new head's 2 are not
     back = plan_rows(store, [("S1", "ppm")], 8, [1], {("S1", "ppm"): old_head})[0]
     assert (back["usable"], back["to_solve"]) == (4, 4)
+
+
+def test_the_embedded_plan_predicts_each_known_head_on_its_backend(sonicom):
+    """With hrtf.solver embedded the run prints each head's predicted time on the configured backend: P143's dataset
+    head (15,735 vertices) ~5.7 s per frequency on the GPU model (measured 5.71 s on an H200), minutes per frequency
+    on the 2-core CPU model; a head built during the run is estimated after its export."""
+    from reporting.solve_plan import embedded_plan_text
+
+    heads = [("P143", "original", str(sonicom / "P143" / "head_graded_left.ply")), ("P143", "ppm", None)]
+    gpu = embedded_plan_text(heads, "cuda", 40)
+    assert "15735 vertices" in gpu and "after its export" in gpu
+    seconds = float(re.search(r"~([0-9.]+) s per frequency", gpu).group(1))
+    assert 4.5 < seconds < 7.0
+    cpu = embedded_plan_text(heads, "auto", 40)
+    assert float(re.search(r"~([0-9.]+) s per frequency", cpu).group(1)) > 100 * seconds

@@ -84,9 +84,9 @@ def test_numba_needs_no_probe_and_auto_without_a_gpu_is_numba(cache, monkeypatch
 
 
 @pytest.mark.slow
-def test_the_real_opencl_probe_on_this_cpu(cache):
-    """The real probe in a child process: whatever this CPU is, the verdict is a clear yes or no, and auto never
-    dies with it."""
+def test_the_real_opencl_probe_on_this_cpu():
+    """The real probe in a child process (verdict cached in the user's cache folder, as in a run): whatever this CPU
+    is, the verdict is a clear yes or no, and auto never dies with it."""
     verdict = backends.probe("opencl")
     assert verdict.reason
     if verdict.ok:
@@ -128,7 +128,7 @@ def surface_of(head):
     return far, touching, bem_arrays.from_geometry(far, touching)
 
 
-@pytest.mark.parametrize("frequency_hz", [2000.0, 16000.0])
+@pytest.mark.parametrize("frequency_hz", [16000.0])
 def test_the_gpu_kernels_cpu_twin_equals_the_numba_assembly(frequency_hz, tmp_path):
     """The array assembly of i/k W - K (far pairs in chunks, touching pairs by quadrature group) run on NumPy equals
     the one-pass numba assembly to 1e-10 relative on a demo-sized head; the saved surface loads back the same."""

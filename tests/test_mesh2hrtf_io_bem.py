@@ -51,15 +51,14 @@ def test_cost_estimate_grows_with_the_square_of_the_mesh():
 
 
 @pytest.mark.slow
-def test_opencl_and_numba_backends_agree_where_the_opencl_probe_passes(tmp_path, monkeypatch):
+def test_opencl_and_numba_backends_agree_where_the_opencl_probe_passes():
     """bempp-cl's OpenCL kernels (pocl) for the right-hand sides and potentials give the same pressures as the numba
     backend (both ears of a 162-vertex sphere, 3 kHz) to 1e-9 relative: both in double precision with the same
     quadrature. The comparison is the probe's own, in a child process (pocl may abort elsewhere; a process that
     solved without OpenCL never loads it)."""
     from mesh2hrtf_io.backends import probe
 
-    monkeypatch.setenv("PPM_HRTF_CACHE_DIR", str(tmp_path))
-    verdict = probe("opencl")
+    verdict = probe("opencl")  # the user's cache: one probe per machine, shared with test_embedded_backends
     if not verdict.ok:
         pytest.skip(f"OpenCL is not usable on this CPU: {verdict.reason}")
     assert verdict.details["max_relative_difference"] < 1e-9

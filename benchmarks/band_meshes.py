@@ -6,7 +6,7 @@ frequencies (default the steps up to 3 kHz): the faces within ``--keep-mm`` of t
 are (the source keeps its element area and position), the rest is remeshed by distance to the pinna (the dataset's
 pinna crop) with the band's edge lengths. The band's steps are solved by NumCalc and compared with the committed
 full-mesh steps of the same frequencies: magnitude difference over the 793 directions (median, p95, max dB) and
-NumCalc CPU seconds. Results: benchmarks/results/band_meshes/<subject>_<head>_<band>.json.
+NumCalc CPU seconds. Results: benchmarks/results/band_meshes/<subject>_<head>_up_to_<Hz>_edges_<mm>.json.
 
 This measures one band at a time to choose band limits and edge lengths; the workflow does not use band meshes yet.
 
@@ -145,7 +145,8 @@ def main() -> None:
                "max_p95_db": round(max(r["p95_db"] for r in rows), 3)}
     summary["ratio"] = round(summary["cpu_seconds_band"] / summary["cpu_seconds_full"], 3)
     KEPT.mkdir(parents=True, exist_ok=True)
-    (KEPT / f"{args.subject}_{args.head}_up_to_{args.up_to_hz:.0f}.json").write_text(
+    edges_name = "-".join(f"{e:g}" for e in edges)
+    (KEPT / f"{args.subject}_{args.head}_up_to_{args.up_to_hz:.0f}_edges_{edges_name}.json").write_text(
         json.dumps({**summary, "steps": rows}, indent=2) + "\n")
     print(json.dumps(summary))
 

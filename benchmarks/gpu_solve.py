@@ -234,7 +234,7 @@ def numcalc_sphere(inputs: Path, out: Path, numcalc: str | None) -> None:
 
 def _step_store_pressures(head: str) -> tuple[np.ndarray, list[float]]:
     """NumCalc's committed pressures of a head (steps, points) and each step's CPU seconds."""
-    from mesh2hrtf_io.step_store import project_fingerprint  # noqa: PLC0415
+    from mesh2hrtf_io.step_store import project_fingerprint, solve_seconds, stored_status  # noqa: PLC0415
 
     project = ROOT / f"results/{SUBJECT}/hrtf/{head}/project"
     fingerprint = project_fingerprint(project, 1)
@@ -245,8 +245,7 @@ def _step_store_pressures(head: str) -> tuple[np.ndarray, list[float]]:
             if str(step["fingerprint"]) != fingerprint:
                 raise SystemExit(f"{path}: stored for another project than results/{SUBJECT}/hrtf/{head}/project")
             pressures.append(step["pressure"])
-            status = json.loads(str(step["status_json"]))
-            seconds.append(sum(a.get("seconds", 0.0) for a in status.get("attempts", [status])))
+        seconds.append(solve_seconds(stored_status(store.parent, 1, int(path.stem.split("_")[1]))))
     return np.array(pressures), seconds
 
 
@@ -289,44 +288,38 @@ def paper_protocol(reference_hrtf: Path, conditions: dict[str, Path]) -> dict:
     return result
 
 
-def report(inputs: Path, results: Path) -> dict:
-    import tempfile  # noqa: PLC0415
-
+def _sphere_errors(solved, problem, solver: str) -> dict:
+    """Per frequency, |solved - series| (dB) over the sphere's directions: median, p95, max; printed as it goes."""
     from mesh2hrtf_io.analytic import rigid_sphere_hrtf  # noqa: PLC0415
     from mesh2hrtf_io.bem import free_field_reference  # noqa: PLC0415
+
+    ear_direction = problem["ear_centre_m"] / np.linalg.norm(problem["ear_centre_m"])
+    errors = {}
+    for frequency, pressure in zip(solved["frequencies_hz"], solved["pressure"]):
+        hrtf = pressure / free_field_reference(problem["points_m"], frequency, float(problem["ear_area_m2"]), 343.0, 1.2)
+        analytic = rigid_sphere_hrtf(float(frequency), SPHERE_RADIUS_M, problem["points_m"], ear_direction, 343.0)
+        error = np.abs(20 * np.log10(np.abs(hrtf) / np.abs(analytic)))
+        errors[f"{frequency:.0f}"] = {"median_db": round(float(np.median(error)), 3),
+                                      "p95_db": round(float(np.percentile(error, 95)), 3),
+                                      "max_db": round(float(error.max()), 3)}
+        print(f"sphere ({int(problem['n_vertices'])} vertices) {frequency:6.0f} Hz: |{solver} - series| median "
+              f"{np.median(error):.3f} dB, p95 {np.percentile(error, 95):.3f} dB, max {error.max():.3f} dB")
+    return errors
+
+
+def report(inputs: Path, results: Path) -> dict:
+    import tempfile  # noqa: PLC0415
 
     info = json.loads((results / "info.json").read_text())
     figures: dict = {"gpu": info.get("gpu", info["backend"]), "twin_max_relative_difference":
                      info["twin_max_relative_difference"], "lu": info.get("lu")}
-    # the sphere against the series
-    sphere = np.load(results / "sphere_pressures.npz")
+    # the sphere against the series, solved on the GPU and (numcalc-sphere stage) by NumCalc
     problem = np.load(inputs / "sphere_problem.npz")
-    ear_direction = problem["ear_centre_m"] / np.linalg.norm(problem["ear_centre_m"])
-    sphere_errors = {}
-    for frequency, pressure in zip(sphere["frequencies_hz"], sphere["pressure"]):
-        hrtf = pressure / free_field_reference(problem["points_m"], frequency, float(problem["ear_area_m2"]), 343.0, 1.2)
-        analytic = rigid_sphere_hrtf(float(frequency), SPHERE_RADIUS_M, problem["points_m"], ear_direction, 343.0)
-        error = np.abs(20 * np.log10(np.abs(hrtf) / np.abs(analytic)))
-        sphere_errors[f"{frequency:.0f}"] = {"median_db": round(float(np.median(error)), 3),
-                                            "p95_db": round(float(np.percentile(error, 95)), 3),
-                                            "max_db": round(float(error.max()), 3)}
-        print(f"sphere ({int(sphere['n_vertices'])} vertices) {frequency:6.0f} Hz: |GPU - series| median "
-              f"{np.median(error):.3f} dB, p95 {np.percentile(error, 95):.3f} dB, max {error.max():.3f} dB")
-    figures["sphere_error_db"] = sphere_errors
-    if (results / "sphere_numcalc_pressures.npz").is_file():  # the same sphere by NumCalc (numcalc-sphere stage)
-        numcalc_sphere_data = np.load(results / "sphere_numcalc_pressures.npz")
-        numcalc_errors = {}
-        for frequency, pressure in zip(numcalc_sphere_data["frequencies_hz"], numcalc_sphere_data["pressure"]):
-            hrtf = pressure / free_field_reference(problem["points_m"], frequency, float(problem["ear_area_m2"]),
-                                                   343.0, 1.2)
-            analytic = rigid_sphere_hrtf(float(frequency), SPHERE_RADIUS_M, problem["points_m"], ear_direction, 343.0)
-            error = np.abs(20 * np.log10(np.abs(hrtf) / np.abs(analytic)))
-            numcalc_errors[f"{frequency:.0f}"] = {"median_db": round(float(np.median(error)), 3),
-                                                 "p95_db": round(float(np.percentile(error, 95)), 3),
-                                                 "max_db": round(float(error.max()), 3)}
-            print(f"sphere {frequency:6.0f} Hz: |NumCalc - series| median {np.median(error):.3f} dB, p95 "
-                  f"{np.percentile(error, 95):.3f} dB, max {error.max():.3f} dB")
-        figures["sphere_numcalc_error_db"] = numcalc_errors
+    figures["sphere_error_db"] = _sphere_errors(np.load(results / "sphere_pressures.npz"), problem, "GPU")
+    if (results / "sphere_numcalc_pressures.npz").is_file():
+        figures["sphere_numcalc_error_db"] = _sphere_errors(np.load(results / "sphere_numcalc_pressures.npz"),
+                                                            problem, "NumCalc")
+    sphere_errors = figures["sphere_error_db"]
     solved = [h for h in HEADS if (results / f"{h}_pressures.npz").is_file()]
     per_head = {}
     with tempfile.TemporaryDirectory() as tmp:

@@ -328,18 +328,6 @@ def _opencl_sources(bempp, grid, p1, system, segments, sources, points_m, freque
     return pressures
 
 
-def _p1_mass(grid, p1) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Gram matrix of the P1 hat functions (m^2) as (rows, columns, values) to be summed: on a triangle of area A,
-    A/6 on the diagonal and A/12 off it. This is the weak form of bempp's sparse identity(P1, P1, P1), in closed
-    form, without the numba kernels whose compilation took about half of a process's first frequency."""
-    local = (np.full((3, 3), 1.0 / 12.0) + np.eye(3) / 12.0)[None] * grid.volumes[:, None, None]
-    dofs = p1.local2global
-    multipliers = p1.local_multipliers
-    rows = np.broadcast_to(dofs[:, :, None], local.shape).ravel()
-    columns = np.broadcast_to(dofs[:, None, :], local.shape).ravel()
-    return rows, columns, (local * multipliers[:, :, None] * multipliers[:, None, :]).ravel()
-
-
 def _p1_load(grid, p1, elements: np.ndarray) -> np.ndarray:
     """Integral of each P1 hat function over the given elements (m^2): A/3 per corner of each triangle; the weak
     form of identity(DP0, P1, P1) applied to 1 on those elements."""
@@ -353,7 +341,7 @@ _surface_state: dict[str, object] = {"key": None, "surface": None}
 
 
 def _surface(bempp, vertices_m: np.ndarray, faces: np.ndarray, segments: np.ndarray):
-    """bempp's grid of the head (metres), its P1 space, its mass terms (:func:`_p1_mass`) and the geometry of its
+    """bempp's grid of the head (metres), its P1 space, its P1 mass terms (:func:`bem_arrays.mass_terms`) and the geometry of its
     far and touching element pairs (:mod:`burton_miller`), kept while the same head is solved frequency after
     frequency: building the grid's geometry takes about a second on a demo head."""
     import hashlib  # noqa: PLC0415
@@ -369,8 +357,8 @@ def _surface(bempp, vertices_m: np.ndarray, faces: np.ndarray, segments: np.ndar
         p1 = bempp.function_space(grid, "P", 1)
         far = burton_miller.far_field_geometry(grid, p1, REGULAR_QUADRATURE_ORDER)
         touching = burton_miller.singular_pairs(grid, p1, SINGULAR_QUADRATURE_ORDER)
-        _surface_state["surface"] = (grid, p1, _p1_mass(grid, p1), far, touching,
-                                     bem_arrays.from_geometry(far, touching))
+        arrays = bem_arrays.from_geometry(far, touching)
+        _surface_state["surface"] = (grid, p1, bem_arrays.mass_terms(arrays), far, touching, arrays)
         _surface_state["key"] = key
         _surface_state["device_surfaces"] = {}
     return _surface_state["surface"]

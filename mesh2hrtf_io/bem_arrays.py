@@ -166,12 +166,8 @@ class DeviceSurface:
         self.multipliers = xp.asarray(s.multipliers)
         self.dofs = xp.asarray(s.dofs)
         # (E * 3, n) sparse: local shape function (element b, j) -> its global P1 degree of freedom, with its sign
-        try:
-            self.local_to_global = self._scatter(np.arange(3 * s.n_elements), s.dofs.ravel(), s.multipliers.ravel(),
-                                                 (3 * s.n_elements, s.dof_count))
-        except (TypeError, ValueError, NotImplementedError, AttributeError):  # no usable sparse matrices here
-            self.local_to_global = None
-            SCATTER["elementwise"] = True
+        self.local_to_global = self._scatter(np.arange(3 * s.n_elements), s.dofs.ravel(), s.multipliers.ravel(),
+                                             (3 * s.n_elements, s.dof_count))
         self.touch_test = xp.asarray(s.touch_test)
         self.touch_trial = xp.asarray(s.touch_trial)
         # touching pairs sorted by test element, to mark them in each chunk of test elements
@@ -297,41 +293,20 @@ def _contract_shapes(xp, kernel, shape):
 
 
 def _scatter_block(dev: DeviceSurface, matrix, block, start: int, stop: int) -> None:
-    """Add a (ca, 3, E, 3) block of test elements [start, stop) x all trial elements into the dense matrix: two
-    sparse products (local shape functions -> global P1 degrees of freedom), or element-wise scatter-adds where the
-    backend's sparse product fails (:data:`SCATTER`)."""
+    """Add a (ca, 3, E, 3) block of test elements [start, stop) x all trial elements into the dense matrix by two
+    sparse products (local shape functions -> global P1 degrees of freedom)."""
     xp = dev.backend.xp
     ca = stop - start
-    s = dev.surface
-    rows = s.dofs[start:stop].ravel()
-    signs = s.multipliers[start:stop].ravel()
-    if not SCATTER["elementwise"]:
-        try:
-            flat = block.reshape(ca * 3, dev.E * 3)
-            # columns: (n, E*3) @ (E*3, ca*3) -> the chunk's local test functions against global columns
-            columns = (dev.local_to_global.T @ flat.T).T  # (ca*3, n)
-            unique_rows, inverse = np.unique(rows, return_inverse=True)
-            gather = dev.backend.sparse.coo_matrix(
-                (xp.asarray(signs, dtype=np.complex128), (xp.asarray(inverse.ravel()), xp.asarray(np.arange(ca * 3)))),
-                shape=(len(unique_rows), ca * 3)).tocsr()
-            summed = gather @ columns  # (unique rows, n)
-            matrix[xp.asarray(unique_rows)] += summed
-            return
-        except (TypeError, ValueError, NotImplementedError, AttributeError) as exc:
-            import logging  # noqa: PLC0415
-
-            logging.getLogger(__name__).warning("sparse assembly failed on %s (%s); scatter-adds instead",
-                                                dev.backend.name, exc)
-            SCATTER["elementwise"] = True
-    column_dofs = xp.asarray(s.dofs.ravel())
-    column_signs = xp.asarray(s.multipliers.ravel())
-    signed = block.reshape(ca * 3, dev.E * 3) * column_signs[None, :] * xp.asarray(signs)[:, None]
-    linear = xp.asarray(rows)[:, None] * dev.n + column_dofs[None, :]
-    scatter_add_complex(xp, matrix.reshape(-1), linear.ravel(), signed.ravel())
-
-
-#: whether the dense assembly scatters element by element (set when a backend's sparse product fails)
-SCATTER = {"elementwise": False}
+    rows = dev.surface.dofs[start:stop].ravel()
+    signs = dev.surface.multipliers[start:stop].ravel()
+    flat = block.reshape(ca * 3, dev.E * 3)
+    # columns: (n, E*3) @ (E*3, ca*3) -> the chunk's local test functions against global columns
+    columns = (dev.local_to_global.T @ flat.T).T  # (ca*3, n)
+    unique_rows, inverse = np.unique(rows, return_inverse=True)
+    gather = dev.backend.sparse.coo_matrix(
+        (xp.asarray(signs, dtype=np.complex128), (xp.asarray(inverse.ravel()), xp.asarray(np.arange(ca * 3)))),
+        shape=(len(unique_rows), ca * 3)).tocsr()
+    matrix[xp.asarray(unique_rows)] += gather @ columns  # (unique rows, n)
 
 
 def scatter_add_complex(xp, target, index, values) -> None:
@@ -406,17 +381,9 @@ def _p1_shape(xp, reference):
 def add_sparse(dev: DeviceSurface, matrix, rows, columns, values) -> None:
     """matrix[rows, columns] += values with repeated (row, column) pairs summed."""
     xp = dev.backend.xp
-    if not SCATTER["elementwise"]:
-        try:
-            summed = dev.backend.sparse.coo_matrix((values, (xp.asarray(rows), xp.asarray(columns))),
-                                                   shape=matrix.shape)
-            summed.sum_duplicates()
-            matrix[summed.row, summed.col] += summed.data
-            return
-        except (TypeError, ValueError, NotImplementedError, AttributeError):
-            SCATTER["elementwise"] = True
-    linear = xp.asarray(rows) * matrix.shape[1] + xp.asarray(columns)
-    scatter_add_complex(xp, matrix.reshape(-1), linear, xp.asarray(values, dtype=np.complex128))
+    summed = dev.backend.sparse.coo_matrix((values, (xp.asarray(rows), xp.asarray(columns))), shape=matrix.shape)
+    summed.sum_duplicates()
+    matrix[summed.row, summed.col] += summed.data
 
 
 def mass_terms(surface: SurfaceArrays) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -91,7 +91,7 @@ def restore_step(project_dir: str | os.PathLike, source: int, step: int, store: 
         if str(stored["fingerprint"]) != (fingerprint or project_fingerprint(project_dir, source)):
             return False
         nodes, pressure = stored["node_ids"], stored["pressure"]
-        status = json.loads(str(stored["status_json"])) if "status_json" in stored.files else {}
+        status = _status_of(stored)
     if step_is_complete(folder, step, len(nodes)):
         return True
     write_eval_grid_pressure(folder, step, nodes, pressure)
@@ -106,7 +106,12 @@ def stored_status(store: str | os.PathLike, source: int, step: int) -> dict | No
     if not path.is_file():
         return None
     with np.load(path) as stored:
-        return json.loads(str(stored["status_json"])) if "status_json" in stored.files else {}
+        return _status_of(stored)
+
+
+def _status_of(stored) -> dict:
+    """The solver status kept in an open stored step ({} when saved without one)."""
+    return json.loads(str(stored["status_json"])) if "status_json" in stored.files else {}
 
 
 def solve_seconds(status: dict | None) -> float:

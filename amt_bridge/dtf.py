@@ -10,6 +10,8 @@ import dataclasses
 
 import numpy as np
 
+from hrtf_dsp.phase import minimum_phase_spectrum
+
 from .angles import EPS
 from .errors import AmtBridgeError
 from .hrtf_set import HrirSet
@@ -22,22 +24,6 @@ def directional_levels_db(spectra: np.ndarray) -> np.ndarray:
     magnitude per frequency, for comparing two sets direction by direction (a per-frequency gain drops out)."""
     level = 20.0 * np.log10(np.abs(spectra) + EPS)
     return level - level.mean(axis=0, keepdims=True)
-
-
-def minimum_phase_spectrum(log_magnitude: np.ndarray) -> np.ndarray:
-    """The minimum-phase spectrum exp(C + i·phase) of a full (two-sided, length N along the last axis)
-    natural-log magnitude C, by folding its real cepstrum."""
-    n = log_magnitude.shape[-1]
-    cepstrum = np.fft.ifft(log_magnitude, axis=-1).real
-    fold = np.zeros(n)
-    fold[0] = 1.0
-    half = n // 2
-    if n % 2 == 0:
-        fold[1:half] = 2.0
-        fold[half] = 1.0
-    else:
-        fold[1:half + 1] = 2.0
-    return np.exp(np.fft.fft(cepstrum * fold, axis=-1))
 
 
 def common_transfer_function(hrirs: HrirSet, mode: str = "log") -> np.ndarray:

@@ -7,15 +7,9 @@ import math
 import numpy as np
 from scipy.signal import lfilter
 
+from hrtf_dsp.erb import erb_number_to_freq, freq_to_erb_number
 
-def freq_to_erb_number(frequency_hz: np.ndarray) -> np.ndarray:
-    """ERB-number scale (Glasberg & Moore), as LTFAT's freqtoaud(..., 'erb')."""
-    return 9.2645 * np.sign(frequency_hz) * np.log(1 + np.abs(frequency_hz) * 0.00437)
-
-
-def erb_number_to_freq(erb_number: np.ndarray) -> np.ndarray:
-    """Inverse of :func:`freq_to_erb_number` (Hz)."""
-    return (1 / 0.00437) * np.sign(erb_number) * (np.exp(np.abs(erb_number) / 9.2645) - 1)
+__all__ = ["erb_number_to_freq", "freq_to_erb_number"]  # the scale lives in hrtf_dsp.erb; named here too
 
 
 def equivalent_rectangular_bandwidth(frequency_hz: np.ndarray) -> np.ndarray:

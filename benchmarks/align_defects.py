@@ -35,7 +35,8 @@ import trimesh
 
 from align_real import loo_template
 from ppm.align import AlignSettings, align, prepare_target
-from ppm.align.any_pose import PoseUncertainError, align_any_pose
+from ppm.align.any_pose import PoseUncertainError
+from ppm.align.pose_by_fit import align_any_pose
 from ppm.align.defects import defective_scan, levels, random_pose
 from ppm.align.pose import apply_similarity
 from ppm.align.report import one_sided_distances_mm, reverse_distances_mm
@@ -80,7 +81,7 @@ def fit_file(model: PinnaModel, mesh: trimesh.Trimesh, folder: Path, name: str, 
              settings: AlignSettings | None = None):
     """Write the scan to PLY and fit it through the workflow's path: (target in the chosen pose, result,
     seconds). With scan_pose 'any' the pose is found and, where the rigid search left alternatives, decided by
-    the PPM fit (ppm.align.any_pose.align_any_pose)."""
+    the PPM fit (ppm.align.pose_by_fit.align_any_pose)."""
     path = folder / f"{name}.ply"
     mesh.export(path)
     start = time.perf_counter()

@@ -10,7 +10,7 @@ NumCalc CPU seconds. Results: benchmarks/results/band_meshes/<subject>_<head>_up
 
 This measures one band at a time to choose band limits and edge lengths; the workflow does not use band meshes yet.
 
-Run: .venv/bin/python benchmarks/band_meshes.py [--subject P143] [--head original] [--up-to-hz 3000]
+Run: .venv/bin/python benchmarks/band_meshes.py [--subject P143] [--head original] [--from-hz 0] [--up-to-hz 3000]
      [--edges 3,5,8,12] [--numcalc PATH]
 Last line: JSON with band_steps, elements_full, elements_band, cpu_seconds_full, cpu_seconds_band, ratio,
 max_median_db, max_p95_db.
@@ -72,6 +72,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--subject", default="P143")
     parser.add_argument("--head", default="original")
+    parser.add_argument("--from-hz", type=float, default=0.0, help="the band's lowest frequency (exclusive)")
     parser.add_argument("--up-to-hz", type=float, default=3000.0)
     parser.add_argument("--edges", default="3,5,8,12", help="edge lengths (mm) within 12, 30, 60 mm of the pinna "
                         "and beyond")
@@ -93,7 +94,7 @@ def main() -> None:
     full = read_project(full_dir)
     store = ROOT / "evaluation" / "sonicom" / "steps" / args.subject / args.head / "source_1"
     fingerprint = project_fingerprint(full_dir, 1)
-    steps = [i + 1 for i, f in enumerate(full.frequencies_hz) if f <= args.up_to_hz]
+    steps = [i + 1 for i, f in enumerate(full.frequencies_hz) if args.from_hz < f <= args.up_to_hz]
     reference, cpu_full = [], []
     for step in steps:
         with np.load(store / f"step_{step:03d}.npz") as kept:
@@ -107,7 +108,7 @@ def main() -> None:
     mesh, source = band_mesh(full.vertices_m * 1000.0, full.faces, full.sources[0].elements,
                              np.asarray(pinna.vertices), edges, args.keep_mm)
     print(f"{args.subject} {args.head}: {len(full.faces)} elements -> {len(mesh.faces)} for the band up to "
-          f"{args.up_to_hz:.0f} Hz ({len(steps)} steps; edges {edges} mm; remeshed in {time.perf_counter() - start:.0f} s)",
+          f"{args.from_hz:.0f}-{args.up_to_hz:.0f} Hz ({len(steps)} steps; edges {edges} mm; remeshed in {time.perf_counter() - start:.0f} s)",
           flush=True)
     with tempfile.TemporaryDirectory() as tmp:
         project = Path(tmp) / "band"
@@ -136,7 +137,7 @@ def main() -> None:
         print(f"  step {step} {rows[-1]['frequency_hz']:6.0f} Hz: |band - full| median {rows[-1]['median_db']:.3f} dB, "
               f"p95 {rows[-1]['p95_db']:.3f} dB, max {rows[-1]['max_db']:.2f} dB; NumCalc {cpu_full[i]:.0f} s full, "
               f"{rows[-1]['cpu_seconds_band'] or 0:.0f} s band")
-    summary = {"subject": args.subject, "head": args.head, "up_to_hz": args.up_to_hz, "edges_mm": edges,
+    summary = {"subject": args.subject, "head": args.head, "from_hz": args.from_hz, "up_to_hz": args.up_to_hz, "edges_mm": edges,
                "keep_mm": args.keep_mm, "band_steps": len(steps), "elements_full": len(full.faces),
                "elements_band": len(mesh.faces), "source_area_full_mm2": round(area_full, 4),
                "source_area_band_mm2": round(area_band, 4), "cpu_seconds_full": round(sum(cpu_full), 1),
@@ -146,7 +147,8 @@ def main() -> None:
     summary["ratio"] = round(summary["cpu_seconds_band"] / summary["cpu_seconds_full"], 3)
     KEPT.mkdir(parents=True, exist_ok=True)
     edges_name = "-".join(f"{e:g}" for e in edges)
-    (KEPT / f"{args.subject}_{args.head}_up_to_{args.up_to_hz:.0f}_edges_{edges_name}.json").write_text(
+    band_name = f"{args.from_hz:.0f}_to_{args.up_to_hz:.0f}" if args.from_hz > 0 else f"up_to_{args.up_to_hz:.0f}"
+    (KEPT / f"{args.subject}_{args.head}_{band_name}_edges_{edges_name}.json").write_text(
         json.dumps({**summary, "steps": rows}, indent=2) + "\n")
     print(json.dumps(summary))
 

@@ -23,7 +23,7 @@ from mesh2hrtf_io import sagittal_grid, write_project
 from mesh2hrtf_io.bem import estimate_cost
 from mesh2hrtf_io.embedded import solve_project_embedded
 from mesh2hrtf_io.sofa_out import collect_sofa
-from stitching.ear_canal import ear_canal_elements
+from mesh2hrtf_io.ear_canal import ear_canal_elements
 
 HEAD = Path(__file__).resolve().parents[2] / "shared" / "data" / "heads" / "mesh2hrtf_example_head_5mm.ply"
 

@@ -268,24 +268,11 @@ def _sofa_of(head: str, pressures: np.ndarray, folder: Path) -> Path:
 
 
 def paper_protocol(reference_hrtf: Path, conditions: dict[str, Path]) -> dict:
-    """QE/PE of each condition (left-ear HRTF SOFA files) with the reference (a left-ear SOFA, completed with the
-    dataset's right ear) as template, S calibrated to 8 % QE on it: the paper's protocol."""
-    import sofar  # noqa: PLC0415
+    """QE/PE of each condition with the reference as template, S calibrated to 8 % QE on it: the paper's protocol
+    (:func:`reporting.paper_protocol.paper_protocol`, the right ear from the subject's dataset HRIRs)."""
+    from reporting.paper_protocol import paper_protocol as protocol  # noqa: PLC0415
 
-    from amt_bridge.hrtf_set import read_hrtf_set, read_one_ear_completed, resampled_at  # noqa: PLC0415
-    from amt_bridge.model import LocalisationModel  # noqa: PLC0415
-
-    frequencies = np.asarray(sofar.read_sofa(str(reference_hrtf), verify=False).N)
-    dataset = resampled_at(read_hrtf_set(ROOT.parent / "shared/data/sonicom" / SUBJECT / "hrir_mesh2hrtf_48k.sofa"),
-                           frequencies)
-    template = read_one_ear_completed(reference_hrtf, "left", dataset)
-    model = LocalisationModel(template, template, [-20.0, 0.0, 20.0])
-    sensitivity = model.calibrate(8.0, closest=True)
-    result = {"sensitivity_db": sensitivity, "reference": model.predict(sensitivity).as_dict()}
-    for name, path in conditions.items():
-        condition = read_one_ear_completed(path, "left", dataset)
-        result[name] = LocalisationModel(condition, template, [-20.0, 0.0, 20.0]).predict(sensitivity).as_dict()
-    return result
+    return protocol(reference_hrtf, conditions, ROOT.parent / "shared/data/sonicom" / SUBJECT / "hrir_mesh2hrtf_48k.sofa")
 
 
 def _sphere_errors(solved, problem, solver: str) -> dict:

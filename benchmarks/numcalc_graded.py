@@ -65,7 +65,7 @@ def export(head: Path, folder: Path, frequencies: list[float], cluster) -> Path:
 
     from mesh2hrtf_io import write_project  # noqa: PLC0415
     from mesh2hrtf_io.grids import sagittal_grid  # noqa: PLC0415
-    from stitching.ear_canal import ear_canal_elements  # noqa: PLC0415
+    from mesh2hrtf_io.ear_canal import ear_canal_elements  # noqa: PLC0415
 
     if not (folder / "parameters.json").is_file():
         mesh = trimesh.load(head, process=False, force="mesh")

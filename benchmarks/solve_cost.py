@@ -31,7 +31,7 @@ from mesh2hrtf_io.embedded import solve_project_embedded
 from mesh2hrtf_io.grids import spherical_to_cartesian_m
 from mesh2hrtf_io.numcalc import estimate_memory, find_numcalc, run_step
 from mesh2hrtf_io.results import read_eval_grid_pressure
-from stitching.ear_canal import ear_canal_elements
+from mesh2hrtf_io.ear_canal import ear_canal_elements
 
 RADIUS_M = 0.0875
 C, RHO = 343.0, 1.2

@@ -26,7 +26,7 @@ from ppm.atomic import write_text_atomic
 from ppm.mesh_io import write_mesh
 from ppm.model import PinnaModel
 from ppm.parameters import random_parameters
-from stitching.ear_canal import ear_canal_elements
+from mesh2hrtf_io.ear_canal import ear_canal_elements
 from stitching.loops import boundary_loops
 from stitching.remesh import Band, fill_folds, remesh_graded, repair_self_intersections
 from stitching.report import validate_head

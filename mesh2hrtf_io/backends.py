@@ -8,7 +8,7 @@ Backends (config ``hrtf.embedded_device``):
   no probe: it is the fallback everywhere.
 - ``opencl``: as numba, but bempp-cl's OpenCL kernels (pocl on the CPU) compute the right-hand sides and the
   potentials. Opt-in: pocl's kernel compiler aborts the process on some CPUs (``LLVM ERROR: Cannot select ...
-  fsqrt`` for a double8 on AMD Zen 4), and the numba backend is as fast (benchmarks/embedded_backends.py).
+  fsqrt`` for a double8 on AMD Zen 4), and the numba backend is as fast (studies/embedded_backends.py).
 - ``cuda``: everything per frequency on an NVIDIA GPU through CuPy (the same array code as the CPU twin).
 - ``auto``: cuda where a CUDA GPU is seen and its probe passes, else numba.
 

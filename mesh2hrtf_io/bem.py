@@ -38,7 +38,7 @@ EAR_SEGMENT = 1  # domain index of the vibrating (ear) elements
 REGULAR_QUADRATURE_ORDER = 2
 #: Order of bempp's singular (Sauter-Schwab) quadrature for element pairs that share a vertex, an edge or the element
 #: itself: bempp's default, pinned here. Order 6 gives the sphere the same error against the series (2-20 kHz,
-#: benchmarks/singular_quadrature.py) at 2.7 times the cost; on a demo head the two differ by < 0.1 dB at 10 kHz.
+#: studies/singular_quadrature.py) at 2.7 times the cost; on a demo head the two differ by < 0.1 dB at 10 kHz.
 SINGULAR_QUADRATURE_ORDER = 4
 
 
@@ -154,7 +154,7 @@ def _bempp():
 def _cache_grid_functions() -> None:
     """Let numba keep bempp-cl's compiled grid and space functions (element adjacency, the P1 degrees of freedom)
     on disk, beside bempp-cl in the environment: they take only arrays, so the next process reuses their machine
-    code instead of compiling them again (benchmarks/embedded_backends.py, first frequency)."""
+    code instead of compiling them again (studies/embedded_backends.py, first frequency)."""
     import importlib  # noqa: PLC0415
 
     from numba.core.registry import CPUDispatcher  # noqa: PLC0415

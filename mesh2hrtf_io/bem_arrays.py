@@ -209,8 +209,6 @@ def gpu_work_budget(n_dofs: int, source: str = "") -> float:
     does not fit."""
     import cupy  # noqa: PLC0415
 
-    from .errors import Mesh2HrtfIoError  # noqa: PLC0415
-
     pool = cupy.get_default_memory_pool()
     free, total = cupy.cuda.Device().mem_info
     return work_budget_for(n_dofs, free + pool.free_bytes(), total, source)

@@ -27,7 +27,7 @@ def _export_frequencies(args) -> np.ndarray:
 def _export(args) -> dict:
     import trimesh  # noqa: PLC0415
 
-    from stitching.ear_canal import ear_canal_elements  # noqa: PLC0415
+    from .ear_canal import ear_canal_elements  # noqa: PLC0415
 
     from .grids import grid_from_sofa, sagittal_grid  # noqa: PLC0415
     from .project import write_project  # noqa: PLC0415

@@ -46,7 +46,7 @@ def embedded_status() -> dict:
             "why": ("always: the fallback" if backend == "numba" else
                     f"{', '.join(absent)} not installed" + (" (pip install -e '.[gpu]')" if backend == "cuda" else "")
                     if absent else (verdict.reason if verdict else "not probed yet on this machine "
-                                    f"(probed on first use, or now: m2h doctor --probe)"))}
+                                    "(probed on first use, or now: m2h doctor --probe)"))}
     candidates = [c for c in auto_candidates() if states[c]["verdict"] is None or states[c]["usable"]]
     return {"usable": True, "why": "bempp-cl installed; dense, suits meshes up to ~10,000 vertices on a CPU",
             "backends": states, "auto": candidates[0] if candidates else "numba",

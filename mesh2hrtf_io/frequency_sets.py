@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from amt_bridge.filterbank import erb_number_to_freq, freq_to_erb_number
+from hrtf_dsp.erb import erb_number_to_freq, freq_to_erb_number
 
 from .errors import Mesh2HrtfIoError
 

@@ -36,7 +36,7 @@ def export_head_project(head_path: str | os.PathLike, project: str | os.PathLike
     (:func:`mesh2hrtf_io.step_store.save_head`), so that a fresh clone solves, and restores, the very same mesh."""
     import trimesh  # noqa: PLC0415
 
-    from stitching.ear_canal import ear_canal_elements  # noqa: PLC0415
+    from .ear_canal import ear_canal_elements  # noqa: PLC0415
 
     head_path = Path(head_path)
     if not head_path.is_file() or head_path.stat().st_size == 0:

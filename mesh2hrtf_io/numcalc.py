@@ -36,7 +36,7 @@ DEFAULT_MAX_ITERATIONS = 250
 NUMCALC_TOLERANCE = 1e-9  # NumCalc 1.2.4's CGS stops at this relative residual (ErroIterSols)
 ACCEPTED_RESIDUAL = 1e-6
 """A step stopped by the iteration limit with a relative residual at or below this is kept, not rerun: its far
-field differs from the fully converged one by far less than 0.01 dB (``benchmarks/numcalc_residual.py``)."""
+field differs from the fully converged one by far less than 0.01 dB (``studies/numcalc_residual.py``)."""
 _CGS_START = "CGS: err_ori"
 _CGS_LINE = re.compile(r"^\s*(\d+) ([-+0-9.eE]+)\s*$", re.MULTILINE)
 

@@ -21,8 +21,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.interpolate import CubicSpline, PchipInterpolator
 
-from amt_bridge.dtf import minimum_phase_spectrum
-from amt_bridge.filterbank import freq_to_erb_number
+from hrtf_dsp.erb import freq_to_erb_number
+from hrtf_dsp.phase import minimum_phase_spectrum
 
 from .errors import Mesh2HrtfIoError
 from .frequency_sets import FEWEST_FOR_REBUILD, check_frequency_set

@@ -58,7 +58,7 @@ def _align(args: argparse.Namespace) -> None:
     import json
 
     from .align import AlignSettings, align, prepare_target
-    from .align.any_pose import align_any_pose, pose_summary
+    from .align.pose_by_fit import align_any_pose, pose_summary
     from .align.report import write_alignment
 
     model = _model(args)

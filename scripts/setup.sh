@@ -12,4 +12,4 @@ if sys.version_info[:2] != (3, 11):
 PY
 [ -x .venv/bin/python ] || "$PYTHON" -m venv .venv
 .venv/bin/python -m pip install --quiet --upgrade pip
-.venv/bin/python -m pip install --quiet -e ".[test,slurm]"
+.venv/bin/python -m pip install --quiet -e ".[test,slurm,docs]"

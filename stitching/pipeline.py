@@ -15,7 +15,7 @@ from mesh2hrtf_io.checks import SLIVER_ANGLE_DEG
 from ppm.atomic import write_text_atomic
 from ppm.mesh_io import write_mesh
 
-from .ear_canal import ear_canal_elements
+from mesh2hrtf_io.ear_canal import ear_canal_elements
 from .errors import StitchError
 from .remesh import DEFAULT_BANDS, fill_folds, remesh_graded, remove_slivers, repair_self_intersections
 from .replace_pinna import own_pinna_region, replace_pinna

@@ -325,7 +325,7 @@ def test_the_fit_that_made_a_kept_head_labels_the_scan_on_every_clone(tmp_path, 
 
 
 def test_band_attribution_with_every_band_swapped_gives_the_conditions_own_differences(sonicom):
-    """benchmarks/band_attribution.py: the unchanged head solved here with all of another set's DTFs taken over (its
+    """studies/band_attribution.py: the unchanged head solved here with all of another set's DTFs taken over (its
     own direction-independent level and phase kept) moves QE/PE by what that set's own summary row says it differs
     from the unchanged head: the DTFs carry the whole difference, so a band's share is meaningful."""
     import subprocess

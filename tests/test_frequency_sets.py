@@ -20,7 +20,7 @@ from mesh2hrtf_io.project_reader import read_project
 from mesh2hrtf_io.results import write_eval_grid_pressure
 from mesh2hrtf_io.sofa_out import collect_sofa
 from mesh2hrtf_io.sparse_hrtf import low_frequency_delay, rebuild_hrirs
-from stitching.ear_canal import ear_canal_elements
+from mesh2hrtf_io.ear_canal import ear_canal_elements
 
 RATE = 48000.0
 N = 320

@@ -24,7 +24,7 @@ from mesh2hrtf_io.numcalc import NumCalcError, find_numcalc, run_step
 from mesh2hrtf_io.project_reader import read_project
 from mesh2hrtf_io.results import missing_steps, read_eval_grid_pressure, step_folder, write_eval_grid_pressure
 from mesh2hrtf_io.sofa_out import collect_sofa
-from stitching.ear_canal import ear_canal_elements
+from mesh2hrtf_io.ear_canal import ear_canal_elements
 
 RADIUS_MM = 87.5
 FREQUENCIES = frequency_list(250.0, 2000.0, 250.0)
@@ -270,7 +270,7 @@ print(f"{{limit}} {{0.9 if tuned else 5e-10}}")
 def test_where_numcalc_cgs_stopped_is_read_from_its_output():
     """NumCalc 1.2.4 prints "<iteration> <relative residual>" every 10 iterations and where CGS stops (after its
     "CGS: err_ori" line; absolute errors on lines of their own); a step stopped by the iteration limit at or below
-    ACCEPTED_RESIDUAL is kept (benchmarks/numcalc_residual.py: 1e-6 left the far field within 3e-5 dB), above it not."""
+    ACCEPTED_RESIDUAL is kept (studies/numcalc_residual.py: 1e-6 left the far field within 3e-5 dB), above it not."""
     from mesh2hrtf_io.numcalc import ACCEPTED_RESIDUAL, _close_enough, last_residual
 
     stdout = ("Assembling\n0 12\n\nCGS: err_ori = 0.0316\n10 0.183697\n10 Abs Error:0.0058\n20 2.74954e-07\n"
@@ -286,7 +286,7 @@ def test_where_numcalc_cgs_stopped_is_read_from_its_output():
 
 def test_a_solve_depends_on_frequency_over_speed_of_sound_only(tmp_path):
     """A referenced HRTF solved at f with c equals the one solved at f * c' / c with c' (the Helmholtz problem and
-    the free-field reference depend on k = 2 pi f / c alone): benchmarks/speed_of_sound.py relabels committed
+    the free-field reference depend on k = 2 pi f / c alone): studies/speed_of_sound.py relabels committed
     solves this way instead of solving them again."""
     mesh = trimesh.creation.icosphere(subdivisions=2, radius=RADIUS_MM)
     ears = {"left": ear_canal_elements(mesh, "left")}

@@ -15,7 +15,7 @@ from mesh2hrtf_io import Mesh2HrtfIoError, sphere_grid, write_project
 from mesh2hrtf_io.clusters import (MIN_CLUSTER_ELEMENTS, chosen_cluster_size_m, cluster_tree, fine_cluster_size_m,
                                    planned_cluster_tree)
 from mesh2hrtf_io.doctor import doctor, numcalc_status
-from stitching.ear_canal import ear_canal_elements
+from mesh2hrtf_io.ear_canal import ear_canal_elements
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -6,7 +6,8 @@ import pytest
 import trimesh
 
 from ppm.align import align, prepare_target
-from ppm.align.any_pose import PoseUncertainError, align_any_pose, detect_unit, find_pose
+from ppm.align.any_pose import PoseUncertainError, detect_unit, find_pose
+from ppm.align.pose_by_fit import align_any_pose
 from ppm.align.defects import defective_scan, levels, random_pose
 from ppm.align.pose import apply_similarity
 from ppm.align.synthetic import add_scan_defects

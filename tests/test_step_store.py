@@ -12,7 +12,7 @@ from mesh2hrtf_io.hrtf_job import solve_numcalc_steps
 from mesh2hrtf_io.project_reader import read_project
 from mesh2hrtf_io.results import read_eval_grid_pressure, step_is_complete, write_eval_grid_pressure
 from mesh2hrtf_io.step_store import project_fingerprint, restore_step, save_head, save_step, stored_head
-from stitching.ear_canal import ear_canal_elements
+from mesh2hrtf_io.ear_canal import ear_canal_elements
 
 FREQUENCIES = [500.0, 1000.0, 2000.0]
 

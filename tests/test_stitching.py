@@ -94,7 +94,7 @@ def test_ear_canal_elements_of_a_real_head(sonicom):
 def test_the_source_sits_in_the_middle_of_the_blocked_canal_floor(sonicom, subject):
     """The ray from the interaural centre leaves the SONICOM heads on the wall behind the tragus; the source is
     the middle of the flat patch the scan closed the canal with, 1-7 mm deeper, its faces looking out along +y."""
-    from stitching.ear_canal import _ray_exit, canal_floor
+    from mesh2hrtf_io.ear_canal import _ray_exit, canal_floor
 
     head = trimesh.load(sonicom / subject / "head_graded_left.ply", process=False)
     hit, face = _ray_exit(head, np.array([0.0, 1.0, 0.0]), "left", subject)

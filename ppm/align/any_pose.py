@@ -12,7 +12,7 @@ report of why that is not possible.
 3. Verdict: the rigid template is a different ear, so a mirror image or a turned-over pose can fit it nearly as
    well (the rigid scores of the left and the mirrored answer differ by only 1.3-1.7x on the hardest defect
    level). Every other answer (other side, or a rotation more than DISTINCT_DEG away) within RESOLVE_RATIO of
-   the best is kept, and :func:`align_any_pose` fits the PPM, a model of left ears, in each: the fit with the
+   the best is kept, and :func:`ppm.align.pose_by_fit.align_any_pose` fits the PPM, a model of left ears, in each: the fit with the
    smallest median scan-to-model distance wins if it beats the fits that land elsewhere (more than SAME_FIT_MM
    away) by FIT_AMBIGUITY_RATIO. Otherwise, or
    when no rigid pose brings the template within MAX_MEDIAN_MM (median) of the scan,
@@ -74,7 +74,7 @@ class ScanPose:
     unit : the detected unit; mirrored : the scan was a right ear; median_mm : median distance of the
         template at this pose; runner_up_ratio : score of the best other answer over the best's (inf if none);
         alternatives : other answers (other side or rotation) within RESOLVE_RATIO of the best, for the PPM fit
-        to decide (:func:`align_any_pose`).
+        to decide (:func:`ppm.align.pose_by_fit.align_any_pose`).
     """
 
     matrix: np.ndarray
@@ -210,71 +210,3 @@ def find_pose(scan: trimesh.Trimesh, template: trimesh.Trimesh, source: str = "s
 def side_name(mirrored: bool) -> str:
     """How a pose's side is told to the user."""
     return "a right ear (mirrored)" if mirrored else "a left ear"
-
-
-def pose_summary(target) -> dict:
-    """What an alignment summary records of a target prepared in any pose (empty for a project-frame scan):
-    the (4, 4) similarity scan -> project frame, the unit and whether the scan was a right ear."""
-    if target.pose is None:
-        return {}
-    return {"scan_to_project": target.pose["matrix"], "mirrored": target.pose["mirrored"], "unit": target.pose["unit"]}
-
-
-def target_in_alternative_pose(target, alternative: dict):
-    """The prepared target (project frame by its best rigid pose) moved into an alternative pose of
-    ``target.pose['alternatives']``; its ``pose`` then describes that alternative."""
-    from .pose import apply_similarity  # noqa: PLC0415
-    from .target import target_from_mesh  # noqa: PLC0415
-
-    relative = np.asarray(alternative["matrix"]) @ np.linalg.inv(np.asarray(target.pose["matrix"]))
-    moved = target_from_mesh(apply_similarity(target.mesh, relative), target.source)
-    pose = {**target.pose, "matrix": alternative["matrix"], "mirrored": alternative["mirrored"], "alternatives": []}
-    return dataclasses.replace(moved, warnings=target.warnings, pose=pose)
-
-
-def align_any_pose(model, target, settings=None):
-    """Fit the PPM to a target prepared with scan_pose 'any': in its best rigid pose and in every alternative
-    kept by :func:`find_pose`; the fit with the smallest median scan-to-model distance wins when it beats the
-    others by FIT_AMBIGUITY_RATIO. Returns (alignment result, the target in the chosen pose). A target without
-    alternatives is fitted once.
-
-    Raises
-    ------
-    PoseUncertainError
-        If two poses' PPM fits are about equally good.
-    """
-    from .fit import align  # noqa: PLC0415
-    from .report import one_sided_distances_mm  # noqa: PLC0415
-
-    options = [target] + [target_in_alternative_pose(target, alternative)
-                          for alternative in (target.pose or {}).get("alternatives", [])]
-    fits = []
-    for option in options:
-        result = align(model, option, settings)
-        median = float(np.median(one_sided_distances_mm(option, result.vertices_mm, model.faces)))
-        log.info("%s: PPM fit as %s: median %.3f mm", target.source,
-                 side_name(bool(option.pose and option.pose["mirrored"])), median)
-        fits.append((median, result, option))
-    fits.sort(key=lambda fit: fit[0])
-    # competitors are fits that land somewhere else on the scan; two rotations that converge to the same
-    # surface are one answer
-    best_median, best_result, best_option = fits[0]
-    to_best = np.asarray(best_option.pose["matrix"]) if best_option.pose else np.eye(4)
-    best_surface = trimesh.Trimesh(best_result.vertices_mm, model.faces, process=False)
-    competitors = []
-    for median, result, option in fits[1:]:
-        relative = to_best @ np.linalg.inv(np.asarray(option.pose["matrix"]))
-        moved = trimesh.transform_points(result.vertices_mm, relative)
-        if float(np.median(trimesh.proximity.closest_point(best_surface, moved)[1])) > SAME_FIT_MM:
-            competitors.append((median, option))
-    if competitors and competitors[0][0] < FIT_AMBIGUITY_RATIO * best_median:
-        describe = ", ".join(f"{median:.3f} mm as {side_name(option.pose['mirrored'])}"
-                             for median, option in [(best_median, best_option), *competitors])
-        raise PoseUncertainError(
-            f"{target.source}: the PPM fits the scan about equally well in different poses (median distance "
-            f"{describe}): the scan shows too little of the pinna's shape to orient it. Give it in the project "
-            "frame (x front, y left, z up, mm) instead")
-    if competitors:
-        best_result.warnings.append(f"pose decided by the PPM fit: median {best_median:.3f} mm against "
-                                    f"{competitors[0][0]:.3f} mm in the next pose")
-    return best_result, best_option

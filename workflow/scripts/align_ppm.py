@@ -15,7 +15,7 @@ import dataclasses  # noqa: E402
 import json  # noqa: E402
 
 from ppm.align import AlignSettings, align, prepare_target  # noqa: E402
-from ppm.align.any_pose import align_any_pose, pose_summary  # noqa: E402
+from ppm.align.pose_by_fit import align_any_pose, pose_summary  # noqa: E402
 from ppm.align.report import one_sided_distances_mm, write_alignment  # noqa: E402
 from ppm.model import PinnaModel  # noqa: E402
 from ppm.render import render_distance_map  # noqa: E402

@@ -1,6 +1,6 @@
 """Which speed of sound the dataset's reference HRTFs were solved with, inferred from the committed solves.
 
-    .venv/bin/python benchmarks/speed_of_sound.py [--evaluation evaluation/sonicom] [--subject P143]
+    .venv/bin/python studies/speed_of_sound.py [--evaluation evaluation/sonicom] [--subject P143]
 
 A rigid head's referenced HRTF (ear pressure over the free-field pressure of a point source with the ear's volume
 velocity) depends on frequency f and speed of sound c only through k = 2πf/c. So HRTFs solved at f with this

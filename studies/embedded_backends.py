@@ -7,7 +7,7 @@ matrix, NumPy for right-hand sides and potentials) and opencl (bempp-cl's OpenCL
 2. The demo (`snakemake --cores 2`, 2 subjects, 8 frequencies) in a fresh copy of the workflow per backend: the
    whole run's seconds, and one demo head's seconds per frequency (results/<subject>/hrtf/embedded.json).
 
-Run: .venv/bin/python benchmarks/embedded_backends.py [--threads 2] [--skip-demo]
+Run: .venv/bin/python studies/embedded_backends.py [--threads 2] [--skip-demo]
 Last line: JSON with, per backend, first_frequency_seconds, seconds_per_frequency (sphere), demo_seconds,
 demo_head_seconds_per_frequency, and max_relative_difference.
 """

@@ -1,6 +1,6 @@
 """How much QE/PE move if a pinna-swapped head borrowed the unchanged head's lowest frequency steps.
 
-    .venv/bin/python benchmarks/shared_low_steps.py [--evaluation evaluation/sonicom] [--steps 3 4 6]
+    .venv/bin/python studies/shared_low_steps.py [--evaluation evaluation/sonicom] [--steps 3 4 6]
 
 Below about 1 kHz the wavelength (0.4-2.3 m) is far larger than a pinna, and these steps are NumCalc's slowest
 on a graded head (9-20 min each here, 22-30 % of a head's NumCalc time in the committed step statuses). For every subject whose committed evaluation

@@ -1,6 +1,6 @@
 """Where in frequency each committed evaluation condition's left-ear DTFs leave the dataset's reference.
 
-    .venv/bin/python benchmarks/condition_dtf_gap.py [--evaluation evaluation/sonicom]
+    .venv/bin/python studies/condition_dtf_gap.py [--evaluation evaluation/sonicom]
 
 For every subject and solved condition in ``<evaluation>/summary.csv``, the committed left-ear HRTFs
 (``sofa/<subject>_<condition>_left_HRTF.sofa``, solved at the evaluation frequency set) are compared with the

@@ -7,7 +7,7 @@ directions at 1.2 m and compares both with the analytic series: where the mesh r
 orders give the same error, and where it does not (above ~8 kHz for 14 mm edges) the mesh's own error is what
 remains. Then the steady seconds per frequency of each order on a 1,250-vertex sphere with both ears (1 thread).
 
-Run: .venv/bin/python benchmarks/singular_quadrature.py
+Run: .venv/bin/python studies/singular_quadrature.py
 Last line: JSON with median/max error (dB) per order and frequency, and seconds_per_frequency per order.
 """
 from __future__ import annotations
@@ -61,7 +61,7 @@ def accuracy() -> dict:
 
 def speed(order: int) -> float:
     """Steady seconds per frequency (both ears, 793 points, 1 thread) of a 1,250-vertex sphere at ``order``."""
-    from benchmarks.embedded_backends import head_sized_sphere  # noqa: PLC0415
+    from studies.embedded_backends import head_sized_sphere  # noqa: PLC0415
     from mesh2hrtf_io import bem  # noqa: PLC0415
 
     bem.use_device("auto", 1)

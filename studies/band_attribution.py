@@ -1,6 +1,6 @@
 """Which frequency band carries a condition's QE/PE difference: one band of DTFs swapped at a time.
 
-    .venv/bin/python benchmarks/band_attribution.py [--evaluation evaluation/sonicom] [--subject P143]
+    .venv/bin/python studies/band_attribution.py [--evaluation evaluation/sonicom] [--subject P143]
 
 Base: the committed left-ear HRTFs of the subject's unchanged head solved here (``original``; where that is not
 solved yet, its own pinna cut out and put back, ``own_pinna``, which on P143 is 0.03 pp from it). Donors: the dataset's

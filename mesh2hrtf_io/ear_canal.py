@@ -1,5 +1,8 @@
 """The ear-canal entrance element(s) that act as the reciprocal source of a BEM head mesh.
 
+Used by the stitch (:mod:`stitching.pipeline`) and by the export (:mod:`mesh2hrtf_io.hrtf_job`): one rule for
+both, so that the source of a stitched head is the source its project is solved with.
+
 Frame: millimetres, +x front, +y left, +z up, origin at the interaural centre. A ray from the
 interaural centre along +y (left) or -y (right) leaves the head at the ear: its first exit point lies
 in the concha near the canal, often on the wall behind the tragus. From there the surface is followed
@@ -17,13 +20,18 @@ from __future__ import annotations
 import numpy as np
 import trimesh
 
-from .errors import StitchError
+from ppm.errors import PpmError
+
+from .errors import Mesh2HrtfIoError
 
 SIDES = {"left": 1.0, "right": -1.0}
 
 
-class EarCanalError(StitchError):
-    """No usable ear-canal element: the head is not centred at the interaural axis or has no ear there."""
+class EarCanalError(Mesh2HrtfIoError, PpmError):
+    """No usable ear-canal element: the head is not centred at the interaural axis or has no ear there.
+
+    Lives here, below both the stitch (which places the source while it builds the head) and the export (which
+    finds it again on a given head); a :class:`ppm.errors.PpmError` too, as when it was the stitch's."""
 
 
 def ear_canal_elements(mesh: trimesh.Trimesh, side: str, min_area_mm2: float = 4.0,

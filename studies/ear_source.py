@@ -1,13 +1,13 @@
 """Where the reciprocal ear source sits, and how far that moves the solved DTFs from the dataset's reference.
 
-    .venv/bin/python benchmarks/ear_source.py [--subject P143] [--frequencies 9000 14400] [--speed-of-sound 346.18]
+    .venv/bin/python studies/ear_source.py [--subject P143] [--frequencies 9000 14400] [--speed-of-sound 346.18]
         [--rules ray_exit canal_floor assign_materials given_point] [--source-at X Y Z] [--canal-area MM2] [--work DIR]
 
 The subject's unchanged SONICOM head (``head_graded_left.ply``, the ground truth) is exported once per source rule
 on the reference SOFA's 793 directions, left ear only, at frequencies of the reference's own 150 Hz grid (so the
 reference HRTF is exact there): ``ray_exit``, the source faces at the exit of the ray from the interaural centre
 along +y (the former rule); ``canal_floor``, the middle of the canal floor the surface leads down into from there
-(``stitching.ear_canal``, the rule now; ``--canal-area`` sets its area); ``assign_materials``, the face Mesh2HRTF's
+(``mesh2hrtf_io.ear_canal``, the rule now; ``--canal-area`` sets its area); ``assign_materials``, the face Mesh2HRTF's
 AssignMaterials operator picks (the one nearest the +y axis among the innermost faces within 2 mm of it; not the
 face the dataset's Blender project marks); ``given_point``, the face nearest ``--source-at`` (e.g. that marked
 face). NumCalc solves each, one step at a time; each solved DTF
@@ -34,7 +34,7 @@ SONICOM = ROOT.parent / "shared" / "data" / "sonicom"
 
 def exit_faces(mesh, min_area_mm2: float = 4.0) -> np.ndarray:
     """The former rule: the faces nearest the ray's exit point (outward along +y) up to ``min_area_mm2``."""
-    from stitching.ear_canal import _ray_exit, faces_around
+    from mesh2hrtf_io.ear_canal import _ray_exit, faces_around
 
     left = np.array([0.0, 1.0, 0.0])
     hit, _ = _ray_exit(mesh, left, "left", "head")
@@ -85,7 +85,7 @@ def main() -> None:
     from mesh2hrtf_io.numcalc import find_numcalc, run_step
     from mesh2hrtf_io.project import write_project
     from mesh2hrtf_io.results import read_eval_grid_pressure
-    from stitching.ear_canal import ear_canal_elements
+    from mesh2hrtf_io.ear_canal import ear_canal_elements
 
     folder = SONICOM / args.subject
     head = trimesh.load(folder / "head_graded_left.ply", process=False, force="mesh")

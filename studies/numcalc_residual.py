@@ -1,6 +1,6 @@
 """How far a NumCalc step stopped by its iteration limit lies from the converged one, by where CGS stopped.
 
-    .venv/bin/python benchmarks/numcalc_residual.py [--numcalc PATH] [--subject P143] [--faces 6000]
+    .venv/bin/python studies/numcalc_residual.py [--numcalc PATH] [--subject P143] [--faces 6000]
         [--frequency 8000] [--fractions 0.3 0.5 0.6 0.7 0.8 0.9]
 
 NumCalc 1.2.4's CGS solver iterates until the relative residual falls under 1e-9 and otherwise stops at
@@ -80,7 +80,7 @@ def main() -> None:
     args = parser.parse_args()
     import trimesh  # noqa: PLC0415
 
-    from stitching.ear_canal import ear_canal_elements  # noqa: PLC0415
+    from mesh2hrtf_io.ear_canal import ear_canal_elements  # noqa: PLC0415
 
     started = time.perf_counter()
     numcalc = find_numcalc(args.numcalc)

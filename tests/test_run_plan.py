@@ -1,0 +1,105 @@
+"""pipeline.run_plan: what a run makes for which subject (the Python behind rules/common.smk), on the demo config
+and on the paper's SONICOM config with the committed step store."""
+from __future__ import annotations
+
+import copy
+import os
+from pathlib import Path
+
+import pytest
+import yaml
+from snakemake.utils import validate
+
+from pipeline.run_plan import RunConfigError, RunPlan, apply_demo_overrides, configfile_settings
+
+ROOT = Path(__file__).resolve().parents[1]
+SCHEMA = ROOT / "config" / "schema.yaml"
+
+
+def _merged(base: dict, update: dict) -> dict:
+    out = copy.deepcopy(base)
+    for key, value in update.items():
+        out[key] = _merged(out[key], value) if isinstance(value, dict) and isinstance(out.get(key), dict) else value
+    return out
+
+
+def _config(*files: str, **overrides) -> dict:
+    config = yaml.safe_load((ROOT / "config" / "config.yaml").read_text())
+    for name in files:
+        config = _merged(config, yaml.safe_load((ROOT / name).read_text()))
+    config = _merged(config, overrides)
+    validate(config, str(SCHEMA))
+    if not config["data_root"]:
+        apply_demo_overrides(config)
+        validate(config, str(SCHEMA))
+    return config
+
+
+@pytest.fixture()
+def in_root(monkeypatch):
+    monkeypatch.chdir(ROOT)  # the plan's paths are relative to the project root, as in the workflow
+
+
+def test_the_demo_plan(in_root):
+    config = _config()
+    run = RunPlan(config)
+    assert run.demo and run.subjects == ["demo01", "demo02"]
+    assert run.demo_seed("demo02") == config["demo"]["seed"] + 1
+    assert run.align_template("demo01").endswith("template_left.ply")
+    assert config["hrtf"]["solver"] == "embedded"  # the demo's hrtf keys replaced the general ones
+    assert run.steps_of("demo01", "ppm") == ["results/demo01/hrtf/embedded.json"]
+    assert run.solved_variants("demo01") == ["reference", "ppm"]
+    final = run.final_output()
+    assert "results/demo02/report.html" in final and "results/dataset_report.html" in final
+    assert run.subject_report_inputs("demo01")["truth"] == "results/demo_data/demo01/truth_parameters.json"
+    assert run.embedded_mem_mb(["results/no_such/project"]) == 4096  # before the export: the dry-run default
+    assert "embedded" in run.solve_plan_text(2)
+
+
+def test_the_paper_plan_reads_the_committed_step_store(in_root, sonicom):
+    run = RunPlan(_config("config/paper_sonicom.yaml"))
+    assert run.subjects == ["P039", "P067", "P143"]
+    assert run.evaluation_conditions("P143") == ["original", "ppm", "own_pinna", "default_ppm"]
+    assert run.evaluation_conditions("P067") == ["original", "ppm", "own_pinna"]
+    # the PPM head is the one kept beside its solved steps, not a rebuild
+    assert run.head_mesh_of("P143", "ppm") == "evaluation/sonicom/steps/P143/ppm/head.ply"
+    assert run.head_mesh_of("P143", "original").endswith("sonicom/P143/head_graded_left.ply")
+    steps = run.steps_of("P067", "ppm")
+    assert len(steps) == 40 and steps[0] == "results/P067/hrtf/ppm/steps/source_1/steps_1-1.json"
+    assert run.solved_variants("P039") == ["original", "ppm", "own_pinna"]  # the dataset's own reference HRIRs
+    assert run.reference_sofa("P039") == "../shared/data/sonicom/P039/hrir_mesh2hrtf_48k.sofa"
+    assert len(run.reference_frequencies("P039")) == 40
+    inputs = run.evaluation_report_inputs()
+    assert inputs["P143_default_ppm_hrtf"] == "results/P143/hrtf/default_ppm/HRTF.sofa"
+    assert "evaluation/sonicom/summary.csv" in run.final_output()
+    # before the export no NumCalc prediction: config hrtf.step_runtime_min per step
+    project = "results/no_such/project"
+    assert run.numcalc_step_runtime_min(project, 1, 3, 1) == 3 * run.hrtf["step_runtime_min"]
+    assert run.numcalc_step_mem_mb(project, 1, 1, 2) == int(1024 * 2.0 * 1.2 * 1.5)
+
+
+def test_steps_per_job_groups_the_steps(in_root, sonicom):
+    run = RunPlan(_config("config/paper_sonicom.yaml", hrtf={"steps_per_job": 16}))
+    assert [Path(s).name for s in run.steps_of("P143", "ppm")] == ["steps_1-16.json", "steps_17-32.json",
+                                                                    "steps_33-40.json"]
+
+
+def test_bad_data_roots_are_named(in_root, tmp_path, sonicom):
+    with pytest.raises(RunConfigError, match="no such folder"):
+        RunPlan(_config(data_root=str(tmp_path / "missing")))
+    with pytest.raises(RunConfigError, match="no <subject>/pinna_left_crop.ply under it"):
+        RunPlan(_config(data_root=str(tmp_path)))
+    table = tmp_path / "subjects.csv"
+    table.write_text("subject\nP143\nP999\n")
+    with pytest.raises(RunConfigError, match="P999 have no pinna_left_crop.ply"):
+        RunPlan(_config(data_root=str(sonicom), subjects_table=str(table)))
+    with pytest.raises(RunConfigError, match="unknown HRTF variant"):
+        RunPlan(_config(data_root=str(sonicom))).head_mesh_of("P143", "nricp")
+
+
+def test_configfile_settings_spell_out_files_outside_the_checkout(tmp_path):
+    outside = tmp_path / "extra.yaml"
+    outside.write_text("hrtf:\n  steps_per_job: 4\n")
+    inside, settings = configfile_settings([str(ROOT / "config/paper_sonicom.yaml"), str(outside)], ROOT)
+    assert inside == [os.path.join("config", "paper_sonicom.yaml")]
+    assert settings == [f"{outside}: hrtf.steps_per_job = 4"]

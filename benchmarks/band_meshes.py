@@ -2,9 +2,9 @@
 steps of a head whose 40 full-mesh steps are committed, and how far its pressures move.
 
 For one head (default P143 ``original``) the exported full-mesh project is remeshed coarser for one band of
-frequencies (default the steps up to 3 kHz): the faces within ``--keep-mm`` of the ear-canal source are kept as they
-are (the source keeps its element area and position), the rest is remeshed by distance to the pinna (the dataset's
-pinna crop) with the band's edge lengths. The band's steps are solved by NumCalc and compared with the committed
+frequencies (default the steps up to 3 kHz) by :func:`stitching.frequency_bands.band_mesh`: the faces within
+``--keep-mm`` of the ear-canal source are kept as they are (the source keeps its element area and position), the
+rest is remeshed by distance to the pinna (the dataset's pinna crop) with the band's edge lengths, slivers repaired. The band's steps are solved by NumCalc and compared with the committed
 full-mesh steps of the same frequencies: magnitude difference over the 793 directions (median, p95, max dB) and
 NumCalc CPU seconds. Results: benchmarks/results/band_meshes/<subject>_<head>_up_to_<Hz>_edges_<mm>.json.
 
@@ -13,7 +13,12 @@ This measures one band at a time to choose band limits and edge lengths; the wor
 Run: .venv/bin/python benchmarks/band_meshes.py [--subject P143] [--head original] [--from-hz 0] [--up-to-hz 3000]
      [--edges 3,5,8,12] [--numcalc PATH]
 Last line: JSON with band_steps, elements_full, elements_band, cpu_seconds_full, cpu_seconds_band, ratio,
-max_median_db, max_p95_db.
+max_median_db, max_p95_db. The band's pressures are kept beside its JSON (.npz).
+
+Judge banded heads (no solve; the bands of --band-set must have been solved):
+     .venv/bin/python benchmarks/band_meshes.py --judge P143/original,P143/ppm --band-set "0-3000:3,5,8,12;..."
+Last line: JSON with cpu_hours_full, cpu_hours_banded, ratio (the worst head's), max_dqe_pp, max_dpe_deg (banded
+against full, QE/PE by the paper's protocol with the full-mesh original as reference), max_p95_db.
 """
 from __future__ import annotations
 
@@ -34,40 +39,6 @@ KEPT = ROOT / "benchmarks" / "results" / "band_meshes"
 DISTANCES_MM = (12.0, 30.0, 60.0, None)
 
 
-def band_mesh(vertices_mm: np.ndarray, faces: np.ndarray, source_faces: np.ndarray, pinna_points_mm: np.ndarray,
-              edges_mm: list[float], keep_mm: float):
-    """The head remeshed with ``edges_mm`` per distance band to the pinna (12, 30, 60 mm, rest), the faces within
-    ``keep_mm`` of the source's centre untouched; returns the mesh and the source's faces in it."""
-    import trimesh  # noqa: PLC0415
-
-    from stitching.remesh import _current_trimesh, _meshset_selecting, _pymeshlab, face_distance_to  # noqa: PLC0415
-
-    pymeshlab = _pymeshlab()
-    head = trimesh.Trimesh(vertices_mm, faces, process=False)
-    centroids = head.triangles_center[source_faces]
-    centre = centroids.mean(axis=0)
-    current = head
-    lower = 0.0
-    for up_to, edge in zip(DISTANCES_MM, edges_mm):
-        upper = np.inf if up_to is None else up_to
-        distance = face_distance_to(pinna_points_mm, current)
-        near_source = np.linalg.norm(current.triangles_center - centre, axis=1) < keep_mm
-        selected = (distance >= lower) & (distance < upper) & ~near_source
-        lower = upper
-        if not selected.any():
-            continue
-        ms = _meshset_selecting(current, selected)
-        ms.meshing_isotropic_explicit_remeshing(iterations=8, selectedonly=True, targetlen=pymeshlab.PureValue(edge),
-                                                featuredeg=60.0, checksurfdist=True,
-                                                maxsurfdist=pymeshlab.PureValue(max(0.05, edge / 10.0)))
-        current = _current_trimesh(ms)
-    # the source faces, found again by their centroids (untouched: within keep_mm of the centre)
-    distance, index = __import__("scipy.spatial", fromlist=["cKDTree"]).cKDTree(current.triangles_center).query(centroids)
-    if distance.max() > 1e-6:
-        raise SystemExit(f"the source faces moved by {distance.max():.2e} mm in the band mesh; raise --keep-mm")
-    return current, np.sort(index)
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--subject", default="P143")
@@ -78,7 +49,15 @@ def main() -> None:
                         "and beyond")
     parser.add_argument("--keep-mm", type=float, default=5.0)
     parser.add_argument("--numcalc", default=None)
+    parser.add_argument("--judge", default=None, metavar="SUBJECT/HEAD,...",
+                        help="solve nothing: judge these heads banded by the kept bands of --band-set against their "
+                             "full-mesh solve (QE/PE by the paper's protocol, CPU hours)")
+    parser.add_argument("--band-set", default="0-3000:3,5,8,12;3000-6000:2,3,5,8",
+                        help="the bands of a banded head for --judge: FROM-UPTO:EDGES;... (Hz, mm)")
     args = parser.parse_args()
+    if args.judge:
+        judge_heads([tuple(h.split("/")) for h in args.judge.split(",")], args.band_set)
+        return
     import trimesh  # noqa: PLC0415
 
     from mesh2hrtf_io import sphere_grid, write_project  # noqa: PLC0415
@@ -86,6 +65,8 @@ def main() -> None:
     from mesh2hrtf_io.project_reader import read_project  # noqa: PLC0415
     from mesh2hrtf_io.results import read_eval_grid_pressure  # noqa: PLC0415
     from mesh2hrtf_io.step_store import project_fingerprint, solve_seconds  # noqa: PLC0415
+    from stitching.frequency_bands import band_mesh  # noqa: PLC0415
+    from stitching.remesh import Band  # noqa: PLC0415
 
     full_dir = ROOT / f"results/{args.subject}/hrtf/{args.head}/project"
     if not full_dir.is_dir():
@@ -105,8 +86,11 @@ def main() -> None:
     edges = [float(e) for e in args.edges.split(",")]
     pinna = trimesh.load(ROOT.parent / "shared/data/sonicom" / args.subject / "pinna_left_crop.ply", process=False)
     start = time.perf_counter()
-    mesh, source = band_mesh(full.vertices_m * 1000.0, full.faces, full.sources[0].elements,
-                             np.asarray(pinna.vertices), edges, args.keep_mm)
+    bands = tuple(Band(np.inf if up_to is None else up_to, edge, max(0.05, edge / 10.0))
+                  for up_to, edge in zip(DISTANCES_MM, edges))
+    mesh, source = band_mesh(trimesh.Trimesh(full.vertices_m * 1000.0, full.faces, process=False),
+                             full.sources[0].elements, np.asarray(pinna.vertices), bands, args.keep_mm,
+                             f"{args.subject} {args.head}")
     print(f"{args.subject} {args.head}: {len(full.faces)} elements -> {len(mesh.faces)} for the band up to "
           f"{args.from_hz:.0f}-{args.up_to_hz:.0f} Hz ({len(steps)} steps; edges {edges} mm; remeshed in {time.perf_counter() - start:.0f} s)",
           flush=True)
@@ -148,9 +132,105 @@ def main() -> None:
     KEPT.mkdir(parents=True, exist_ok=True)
     edges_name = "-".join(f"{e:g}" for e in edges)
     band_name = f"{args.from_hz:.0f}_to_{args.up_to_hz:.0f}" if args.from_hz > 0 else f"up_to_{args.up_to_hz:.0f}"
-    (KEPT / f"{args.subject}_{args.head}_{band_name}_edges_{edges_name}.json").write_text(
-        json.dumps({**summary, "steps": rows}, indent=2) + "\n")
+    name = f"{args.subject}_{args.head}_{band_name}_edges_{edges_name}"
+    (KEPT / f"{name}.json").write_text(json.dumps({**summary, "steps": rows}, indent=2) + "\n")
+    # the band's pressures at the evaluation grid (steps, points), for judging a banded head by QE/PE (--judge)
+    np.savez_compressed(KEPT / f"{name}.npz", steps=np.asarray(steps), pressure=np.asarray(band),
+                        cpu_seconds=np.asarray([r["cpu_seconds_band"] or 0.0 for r in rows]))
     print(json.dumps(summary))
+
+
+def _band_names(subject: str, head: str, band_set: str) -> list[str]:
+    names = []
+    for band in band_set.split(";"):
+        limits, edges = band.split(":")
+        low, high = (float(x) for x in limits.split("-"))
+        edges_name = "-".join(f"{float(e):g}" for e in edges.split(","))
+        band_name = f"{low:.0f}_to_{high:.0f}" if low > 0 else f"up_to_{high:.0f}"
+        names.append(f"{subject}_{head}_{band_name}_edges_{edges_name}")
+    return names
+
+
+def _collected(project_dir: Path, pressures: list[np.ndarray], folder: Path) -> Path:
+    """A left-ear HRTF SOFA of ``pressures`` (per step, at the evaluation grid) written into a copy of the project
+    and collected as the workflow collects (48 kHz, 320 taps)."""
+    from mesh2hrtf_io.hrtf_job import collect  # noqa: PLC0415
+    from mesh2hrtf_io.project_reader import read_project  # noqa: PLC0415
+    from mesh2hrtf_io.results import write_eval_grid_pressure  # noqa: PLC0415
+
+    copy = folder / "project"
+    shutil.copytree(project_dir, copy)
+    project = read_project(copy)
+    node_ids = np.concatenate([grid.node_ids for grid in project.grids])
+    for step, pressure in enumerate(pressures, start=1):
+        write_eval_grid_pressure(project.sources[0].folder, step, node_ids, pressure)
+    hrtf = folder / "HRTF.sofa"
+    collect(copy, hrtf, folder / "HRIR.sofa", {"sampling_rate_hz": 48000.0, "n_samples": 320})
+    return hrtf
+
+
+def judge_heads(heads: list[tuple[str, str]], band_set: str) -> dict:
+    """Each head with the kept bands of ``band_set`` in place of its full-mesh steps, against its full-mesh solve:
+    QE/PE by the paper's protocol (the full-mesh ``original`` of the subject as reference and template, S at 8 %),
+    NumCalc CPU hours of both (the full mesh's from the committed step statuses, the bands' from their solve)."""
+    from mesh2hrtf_io.project_reader import read_project  # noqa: PLC0415
+    from mesh2hrtf_io.step_store import project_fingerprint, solve_seconds  # noqa: PLC0415
+    from reporting.paper_protocol import paper_protocol  # noqa: PLC0415
+
+    results = {}
+    for subject, head in heads:
+        full_dir = ROOT / f"results/{subject}/hrtf/{head}/project"
+        if not full_dir.is_dir():
+            raise SystemExit(f"{full_dir} is missing: export it first (snakemake --configfile config/paper_sonicom.yaml "
+                             f"{full_dir.relative_to(ROOT)})")
+        store = ROOT / "evaluation" / "sonicom" / "steps" / subject / head / "source_1"
+        fingerprint = project_fingerprint(full_dir, 1)
+        n_steps = len(read_project(full_dir).frequencies_hz)
+        full, cpu_full = [], []
+        for step in range(1, n_steps + 1):
+            with np.load(store / f"step_{step:03d}.npz") as kept:
+                if str(kept["fingerprint"]) != fingerprint:
+                    raise SystemExit(f"{store}: stored for another project")
+                full.append(kept["pressure"])
+                cpu_full.append(solve_seconds(json.loads(str(kept["status_json"]))))
+        banded, cpu_banded, p95 = list(full), list(cpu_full), []
+        for name in _band_names(subject, head, band_set):
+            if not (KEPT / f"{name}.npz").is_file():
+                raise SystemExit(f"{KEPT / name}.npz is missing: solve that band first (see --help)")
+            with np.load(KEPT / f"{name}.npz") as band:
+                for step, pressure, seconds in zip(band["steps"], band["pressure"], band["cpu_seconds"]):
+                    banded[int(step) - 1], cpu_banded[int(step) - 1] = pressure, float(seconds)
+            p95.append(json.loads((KEPT / f"{name}.json").read_text())["max_p95_db"])
+        with tempfile.TemporaryDirectory() as tmp:
+            sofa_full = _collected(full_dir, full, Path(tmp) / "full")
+            sofa_banded = _collected(full_dir, banded, Path(tmp) / "banded")
+            reference = (sofa_full if head == "original" else
+                         ROOT / "evaluation" / "sonicom" / "sofa" / f"{subject}_original_left_HRTF.sofa")
+            protocol = paper_protocol(reference, {"full": sofa_full, "banded": sofa_banded},
+                                      ROOT.parent / "shared/data/sonicom" / subject / "hrir_mesh2hrtf_48k.sofa")
+        row = {"cpu_hours_full": round(sum(cpu_full) / 3600, 3), "cpu_hours_banded": round(sum(cpu_banded) / 3600, 3),
+               "qe_full_percent": round(protocol["full"]["qe_percent"], 3),
+               "qe_banded_percent": round(protocol["banded"]["qe_percent"], 3),
+               "pe_full_deg": round(protocol["full"]["pe_deg"], 3), "pe_banded_deg": round(protocol["banded"]["pe_deg"], 3),
+               "max_p95_db": max(p95)}
+        row["ratio"] = round(row["cpu_hours_banded"] / row["cpu_hours_full"], 3)
+        row["dqe_pp"] = round(row["qe_banded_percent"] - row["qe_full_percent"], 3)
+        row["dpe_deg"] = round(row["pe_banded_deg"] - row["pe_full_deg"], 3)
+        print(f"{subject} {head}: NumCalc {row['cpu_hours_full']:.2f} CPU h full, {row['cpu_hours_banded']:.2f} banded "
+              f"(ratio {row['ratio']:.3f}); QE {row['qe_full_percent']:.2f} -> {row['qe_banded_percent']:.2f} % "
+              f"({row['dqe_pp']:+.3f} pp), PE {row['pe_full_deg']:.2f} -> {row['pe_banded_deg']:.2f} deg "
+              f"({row['dpe_deg']:+.3f} deg); worst band p95 {row['max_p95_db']:.2f} dB", flush=True)
+        results[f"{subject}/{head}"] = row
+    summary = {"band_set": band_set, "heads": results,
+               "cpu_hours_full": round(sum(r["cpu_hours_full"] for r in results.values()), 3),
+               "cpu_hours_banded": round(sum(r["cpu_hours_banded"] for r in results.values()), 3),
+               "ratio": max(r["ratio"] for r in results.values()),
+               "max_dqe_pp": max(abs(r["dqe_pp"]) for r in results.values()),
+               "max_dpe_deg": max(abs(r["dpe_deg"]) for r in results.values()),
+               "max_p95_db": max(r["max_p95_db"] for r in results.values())}
+    (KEPT / "judged.json").write_text(json.dumps(summary, indent=2) + "\n")
+    print(json.dumps(summary))
+    return summary
 
 
 if __name__ == "__main__":

@@ -10,7 +10,7 @@ Paths are relative to the working directory (the project root); meshes are in mi
 from __future__ import annotations
 
 import os
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from pathlib import Path
 
 import yaml
@@ -372,10 +372,11 @@ class RunPlan:
             out.append(f"{self.evaluation_folder}/summary.csv")
         return out
 
-    def solve_plan_text(self, cores: int) -> str | None:
+    def solve_plan_text(self, cores: int | Callable[[], int]) -> str | None:
         """The solve plan of this run (reporting/solve_plan.py): NumCalc's steps to solve and restore, or the
         embedded solver's heads with their predicted time on the configured backend; None when nothing is
-        solved."""
+        solved. ``cores`` may be a function, asked only for NumCalc's plan (Snakemake's ``workflow.cores`` raises in
+        a cluster run without --cores)."""
         if not self.hrtf["enabled"]:
             return None
         if self.hrtf["solver"] == "embedded":
@@ -390,4 +391,4 @@ class RunPlan:
         projects = {(subject, variant): f"results/{subject}/hrtf/{variant}/project" for subject, variant in heads}
         rows = plan_rows(self.hrtf["step_store"] or None, heads, len(self.frequencies()),
                          [int(s) for s in self.sources()], projects)
-        return plan_text(rows, cores or 1)
+        return plan_text(rows, (cores() if callable(cores) else cores) or 1)

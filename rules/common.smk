@@ -60,7 +60,8 @@ def get_final_output():
 
 
 def solve_plan_text():
-    return RUN.solve_plan_text(workflow.cores or 1)
+    # the cores are read only where the NumCalc plan needs them: a cluster run (--profile, no --cores) has none
+    return RUN.solve_plan_text(lambda: workflow.cores or 1)
 
 
 # input, param and resource functions: the wildcards passed on

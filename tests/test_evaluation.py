@@ -101,7 +101,7 @@ def test_rows_carry_deltas_against_the_reference_and_goals_are_judged(tmp_path):
 def test_the_committed_sonicom_evaluation_parses_and_its_readme_follows_the_summary():
     """evaluation/sonicom: every subject has the reference and the PPM, the reference sits at the calibration
     (8 % QE), deltas are differences from it, every solved condition has its left-ear SOFA, and the README
-    and the top-level README show the numbers of summary.csv."""
+    and the documentation's evaluation page (docs/evaluation.md) show the numbers of summary.csv."""
     import sofar
 
     rows = read_summary_csv(COMMITTED / "summary.csv")
@@ -110,7 +110,7 @@ def test_the_committed_sonicom_evaluation_parses_and_its_readme_follows_the_summ
                      "n_frequencies", "solve_cpu_hours"}
     assert rows and issue_columns <= set(rows[0]) <= set(COLUMNS)
     readme = (COMMITTED / "README.md").read_text()
-    top = (ROOT / "README.md").read_text()
+    top = (ROOT / "docs" / "evaluation.md").read_text()
     for subject in sorted({r["subject"] for r in rows}):
         mine = {r["condition"]: r for r in rows if r["subject"] == subject}
         assert {"reference", "ppm"} <= set(mine)
@@ -331,7 +331,7 @@ def test_band_attribution_with_every_band_swapped_gives_the_conditions_own_diffe
     import subprocess
     import sys
 
-    result = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "band_attribution.py"), "--subject", "P143"],
+    result = subprocess.run([sys.executable, str(ROOT / "studies" / "band_attribution.py"), "--subject", "P143"],
                             capture_output=True, text=True, check=True, cwd=ROOT)
     figures = json.loads(result.stdout.strip().splitlines()[-1])
     rows = {r["condition"]: r for r in read_summary_csv(COMMITTED / "summary.csv") if r["subject"] == "P143"}
@@ -354,7 +354,7 @@ def test_band_attribution_takes_the_own_pinna_head_as_base_where_the_unchanged_o
     rows = {r["condition"]: r for r in read_summary_csv(COMMITTED / "summary.csv") if r["subject"] == "P039"}
     if not {"own_pinna", "original"} & set(rows) or "ppm" not in rows:
         pytest.skip("P039's own-pinna or unchanged head and its PPM head are not all committed")
-    result = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "band_attribution.py"), "--subject", "P039"],
+    result = subprocess.run([sys.executable, str(ROOT / "studies" / "band_attribution.py"), "--subject", "P039"],
                             capture_output=True, text=True, check=True, cwd=ROOT)
     figures = json.loads(result.stdout.strip().splitlines()[-1])
     base = rows[figures["base_condition"]]

@@ -9,8 +9,10 @@ import json
 import logging
 import os
 import tempfile
+import shutil
 from pathlib import Path
 
+import numpy as np
 
 from ppm.atomic import write_text_atomic
 from ppm.progress import Progress
@@ -28,12 +30,15 @@ SOURCE_TYPES = {"both": "Both ears", "left": "Left ear", "right": "Right ear"}
 
 def export_head_project(head_path: str | os.PathLike, project: str | os.PathLike, settings: dict,
                         grid_sofa: str | os.PathLike | None = None, title: str | None = None,
-                        head_store: str | os.PathLike | None = None) -> None:
+                        head_store: str | os.PathLike | None = None,
+                        sources_json: str | os.PathLike | None = None) -> None:
     """Export ``head_path`` (mm) with ear-canal sources (config hrtf.ears) and the configured frequencies, on
     the sagittal-plane grid or, with ``grid_sofa``, on that SOFA file's source positions (grid "Directions",
     e.g. the reference HRIRs' 793, so that solved and reference sets combine direction by direction). With
     ``head_store`` (the variant's step store folder, for heads the pipeline built), the head is kept there too
-    (:func:`mesh2hrtf_io.step_store.save_head`), so that a fresh clone solves, and restores, the very same mesh."""
+    (:func:`mesh2hrtf_io.step_store.save_head`), so that a fresh clone solves, and restores, the very same mesh.
+    With ``sources_json`` (a band mesh's, :func:`stitching.frequency_bands.write_band_head`), the sources are the
+    faces it names (those of the full head, kept) instead of being found again."""
     import trimesh  # noqa: PLC0415
 
     from .ear_canal import ear_canal_elements  # noqa: PLC0415
@@ -43,7 +48,15 @@ def export_head_project(head_path: str | os.PathLike, project: str | os.PathLike
         raise Mesh2HrtfIoError(f"{head_path}: missing or empty head mesh")
     head = trimesh.load(head_path, process=False, force="mesh")
     sides = ("left", "right") if settings["ears"] == "both" else (settings["ears"],)
-    ears = {side: ear_canal_elements(head, side, source=str(head_path)) for side in sides}
+    if sources_json:
+        given = json.loads(Path(sources_json).read_text())["sources"]
+        missing = [side for side in sides if side not in given]
+        if missing:
+            raise Mesh2HrtfIoError(f"{sources_json}: no source faces for the {', '.join(missing)} ear; make the band "
+                                   "mesh again with the ears of config hrtf.ears")
+        ears = {side: np.asarray(given[side], dtype=np.int64) for side in sides}
+    else:
+        ears = {side: ear_canal_elements(head, side, source=str(head_path)) for side in sides}
     frequencies = frequencies_from_spec(settings["frequencies_hz"])
     grid = (grid_from_sofa(grid_sofa, name="Directions") if grid_sofa
             else sagittal_grid(polar_step_deg=settings["polar_step_deg"]))
@@ -123,6 +136,42 @@ def solve_embedded(projects: dict[str, str | os.PathLike], status_path: str | os
                                                "seconds": round(time.perf_counter() - start, 2),
                                                "threads": threads, "device": device,
                                                "backend": backend_choice_summary()}, indent=2) + "\n")
+
+
+def merge_band_steps(project: str | os.PathLike, band_projects: dict[str | os.PathLike, list[int]]) -> int:
+    """Copy the results of the steps solved on band meshes (``band_projects``: band project -> its steps, 1-based
+    numbers of the full frequency set) into the full project's ``be.out``, so that it is collected as one solve;
+    a step the full project already holds complete is left alone. Returns the number of steps copied.
+
+    Raises
+    ------
+    Mesh2HrtfIoError
+        If a band project's frequencies differ from the full one's, or a step it should hold is not complete.
+    """
+    from .numcalc import step_done  # noqa: PLC0415
+
+    full = read_project(project)
+    n_points = len(full.evaluation_points_m)
+    copied = 0
+    for band_project, steps in band_projects.items():
+        band = read_project(band_project)
+        if not np.array_equal(band.frequencies_hz, full.frequencies_hz) or len(band.sources) != len(full.sources):
+            raise Mesh2HrtfIoError(f"{band_project}: its frequencies or ears differ from {project}'s; export both "
+                                   "with the same settings")
+        for band_source, full_source in zip(band.sources, full.sources):
+            for step in steps:
+                if step_done(full_source.folder, step, n_points):
+                    continue
+                if not step_done(band_source.folder, step, n_points):
+                    raise Mesh2HrtfIoError(f"{band_project}: step {step} of {band_source.folder.name} is not solved")
+                target = full_source.folder / "be.out" / f"be.{step}"
+                partial = target.with_name(target.name + ".partial")
+                shutil.rmtree(partial, ignore_errors=True)
+                shutil.copytree(band_source.folder / "be.out" / f"be.{step}", partial)
+                shutil.rmtree(target, ignore_errors=True)
+                partial.rename(target)
+                copied += 1
+    return copied
 
 
 def collect(project: str | os.PathLike, hrtf_path: str | os.PathLike, hrir_path: str | os.PathLike,

@@ -164,3 +164,13 @@ def save_head(head_path: str | os.PathLike, store: str | os.PathLike) -> Path:
         {"sha256": digest, "triangles": faces, "copied_from": str(head_path),
          "saved_utc": utc_now()}, indent=2) + "\n")
     return target
+
+
+def save_band_sources(sources_json: str | os.PathLike, store: str | os.PathLike) -> Path:
+    """Keep a band mesh's source faces (``sources.json`` of :func:`stitching.frequency_bands.write_band_head`)
+    beside its kept head, so that a fresh clone exports the kept band mesh with the same sources."""
+    target = Path(store) / "sources.json"
+    text = Path(sources_json).read_text()
+    if not target.is_file() or target.read_text() != text:
+        write_text_atomic(target, text)
+    return target

@@ -95,6 +95,7 @@ class RunPlan:
                     "<subject>/pinna_left_crop.ply, or leave data_root empty for the demo")
             self.subjects = subjects_of(config, self.data_root)
         self.evaluation_folder = config["evaluation"]["folder"]
+        self._check_frequency_bands()
 
     @property
     def hrtf(self) -> dict:
@@ -196,14 +197,122 @@ class RunPlan:
         return ["1", "2"] if self.hrtf["ears"] == "both" else ["1"]
 
     def steps_of(self, subject: str, variant: str) -> list[str]:
-        """The status files of a subject's variant's solve: every NumCalc step job, or the subject's embedded
-        job."""
+        """The status files of a subject's variant's solve: every NumCalc step job (hrtf.steps_per_job steps each,
+        never across the edge of a frequency band of a banded head), or the subject's embedded job."""
         if self.hrtf["solver"] == "embedded":
             return [f"results/{subject}/hrtf/embedded.json"]
         base = f"results/{subject}/hrtf/{variant}/steps"
-        n_steps, per_job = len(self.frequencies()), self.hrtf["steps_per_job"]
-        ranges = [(k, min(k + per_job - 1, n_steps)) for k in range(1, n_steps + 1, per_job)]
+        per_job = self.hrtf["steps_per_job"]
+        parts = (self.band_steps() + [self.full_mesh_steps()] if self.banded(variant)
+                 else [list(range(1, len(self.frequencies()) + 1))])
+        ranges = [(part[k], part[min(k + per_job, len(part)) - 1]) for part in parts if part
+                  for k in range(0, len(part), per_job)]
         return [f"{base}/source_{s}/steps_{a}-{b}.json" for s in self.sources() for a, b in ranges]
+
+    # --- a mesh per frequency band (NumCalc) -----------------------------------------------------------------
+    @property
+    def frequency_bands(self) -> list[dict]:
+        """hrtf.frequency_bands.bands: [{up_to_hz, edges_mm}, ...] from the lowest band up."""
+        return (self.hrtf.get("frequency_bands") or {}).get("bands") or []
+
+    def banded(self, variant: str) -> bool:
+        """Whether a variant's head is solved on a mesh per frequency band (NumCalc, listed in
+        hrtf.frequency_bands.variants, and bands given)."""
+        listed = (self.hrtf.get("frequency_bands") or {}).get("variants") or []
+        return self.hrtf["solver"] == "numcalc" and variant in listed and bool(self.frequency_bands)
+
+    def _check_frequency_bands(self) -> None:
+        if not any(self.banded(v) for v in HRTF_VARIANTS):
+            return
+        limits = [band["up_to_hz"] for band in self.frequency_bands]
+        if any(b <= a for a, b in zip(limits, limits[1:])):
+            raise RunConfigError(f"config hrtf.frequency_bands.bands: up_to_hz must increase from band to band, got "
+                                 f"{limits}")
+        distances = len(self.config["stitch"]["bands"])
+        for band in self.frequency_bands:
+            if len(band["edges_mm"]) != distances:
+                raise RunConfigError(
+                    f"config hrtf.frequency_bands.bands (up to {band['up_to_hz']:g} Hz): {len(band['edges_mm'])} edge "
+                    f"lengths for the {distances} distance bands of stitch.bands; give one edge length per distance band")
+
+    def band_steps(self) -> list[list[int]]:
+        """The 1-based steps of the frequency set in each frequency band (above the band below, up to its
+        up_to_hz)."""
+        frequencies = self.frequencies()
+        lower, out = 0.0, []
+        for band in self.frequency_bands:
+            out.append([i + 1 for i, f in enumerate(frequencies) if lower < f <= band["up_to_hz"]])
+            lower = band["up_to_hz"]
+        return out
+
+    def full_mesh_steps(self) -> list[int]:
+        """The steps above the highest frequency band: solved on the full mesh."""
+        top = self.frequency_bands[-1]["up_to_hz"] if self.frequency_bands else 0.0
+        return [i + 1 for i, f in enumerate(self.frequencies()) if f > top]
+
+    def band_of_step(self, variant: str, step: int) -> int | None:
+        """The frequency band (1-based) whose mesh solves a step of a variant, None for the full mesh."""
+        if not self.banded(variant):
+            return None
+        for band, steps in enumerate(self.band_steps(), start=1):
+            if step in steps:
+                return band
+        return None
+
+    @staticmethod
+    def project_of(subject: str, variant: str, band: int | None = None) -> str:
+        """The Mesh2HRTF project of a variant's full mesh, or of its band mesh ``band`` (1-based)."""
+        base = f"results/{subject}/hrtf/{variant}"
+        return f"{base}/project" if band is None else f"{base}/band_{band}/project"
+
+    def band_store_of(self, subject: str, variant: str, band: int | None) -> str | None:
+        """The step store folder of a variant's full mesh, or of its band mesh ``band``."""
+        store = self.store_of(subject, variant)
+        return store if store is None or band is None else str(Path(store) / f"band_{band}")
+
+    def step_project(self, subject: str, variant: str, first: int) -> str:
+        """The project a NumCalc job starting at step ``first`` solves."""
+        return self.project_of(subject, variant, self.band_of_step(variant, first))
+
+    def step_store(self, subject: str, variant: str, first: int) -> str | None:
+        """The store of the steps of a NumCalc job starting at step ``first``."""
+        return self.band_store_of(subject, variant, self.band_of_step(variant, first))
+
+    def band_projects(self, subject: str, variant: str) -> dict[str, list[int]]:
+        """Each band project of a banded variant with its steps (empty for a variant on one mesh)."""
+        if not self.banded(variant):
+            return {}
+        return {self.project_of(subject, variant, band): steps
+                for band, steps in enumerate(self.band_steps(), start=1) if steps}
+
+    def band_remesh_bands(self, band: int) -> list[dict]:
+        """The remeshing bands of band mesh ``band``: stitch.bands' distances with the band's edge lengths."""
+        edges = self.frequency_bands[band - 1]["edges_mm"]
+        return [{"up_to_mm": distance["up_to_mm"], "edge_mm": float(edge), "max_deviation_mm": max(0.05, edge / 10.0)}
+                for distance, edge in zip(self.config["stitch"]["bands"], edges)]
+
+    def band_head_inputs(self, subject: str, variant: str) -> dict:
+        """What a band mesh is made from: the variant's full head (mm) and the subject's left pinna crop (the
+        distances to the pinna)."""
+        return {"head": self.head_mesh_of(subject, variant),
+                "pinna": str(self.data_root / subject / "pinna_left_crop.ply")}
+
+    def band_export_inputs(self, subject: str, variant: str, band: int) -> dict:
+        """The band mesh and its source faces a band project is exported from: those kept in the band's step store
+        (``head.ply``, ``sources.json``) where kept, else made now; and the grid SOFA as for the full project."""
+        from mesh2hrtf_io.step_store import stored_head  # noqa: PLC0415
+
+        store = self.band_store_of(subject, variant, band)
+        kept = stored_head(store)
+        if kept is not None and (kept.parent / "sources.json").is_file():
+            inputs = {"head": str(kept), "sources": str(kept.parent / "sources.json")}
+        else:
+            base = f"results/{subject}/hrtf/{variant}/band_{band}"
+            inputs = {"head": f"{base}/head.ply", "sources": f"{base}/sources.json"}
+        full = self.hrtf_export_inputs(subject, variant)
+        if "grid_sofa" in full:
+            inputs["grid_sofa"] = full["grid_sofa"]
+        return inputs
 
     def solved_variants(self, subject: str) -> list[str]:
         """The heads whose HRTFs are solved for a subject: the reference head when the dataset has no reference
@@ -387,8 +496,17 @@ class RunPlan:
             return embedded_plan_text(heads, self.hrtf.get("embedded_device", "auto"), len(self.frequencies()))
         from reporting.solve_plan import plan_rows, plan_text  # noqa: PLC0415
 
-        heads = [(subject, variant) for subject in self.subjects for variant in self.solved_variants(subject)]
-        projects = {(subject, variant): f"results/{subject}/hrtf/{variant}/project" for subject, variant in heads}
+        heads, projects, steps = [], {}, {}
+        for subject in self.subjects:
+            for variant in self.solved_variants(subject):
+                heads.append((subject, variant))
+                projects[(subject, variant)] = self.project_of(subject, variant)
+                if self.banded(variant):
+                    steps[(subject, variant)] = self.full_mesh_steps()
+                    for band, band_steps in enumerate(self.band_steps(), start=1):
+                        part = (subject, f"{variant}/band_{band}")
+                        heads.append(part)
+                        projects[part], steps[part] = self.project_of(subject, variant, band), band_steps
         rows = plan_rows(self.hrtf["step_store"] or None, heads, len(self.frequencies()),
-                         [int(s) for s in self.sources()], projects)
+                         [int(s) for s in self.sources()], projects, steps)
         return plan_text(rows, (cores() if callable(cores) else cores) or 1)

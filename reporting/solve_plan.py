@@ -64,7 +64,8 @@ BUILT_HEADS = ("ppm", "own_pinna", "default_ppm")  # heads the pipeline makes; k
 
 
 def plan_rows(store_root: str | os.PathLike | None, heads: list[tuple[str, str]], n_steps: int,
-              sources: list[int], projects: dict[tuple[str, str], str | os.PathLike] | None = None) -> list[dict]:
+              sources: list[int], projects: dict[tuple[str, str], str | os.PathLike] | None = None,
+              steps: dict[tuple[str, str], list[int]] | None = None) -> list[dict]:
     """One row per (subject, variant): whether the store keeps the head, steps in all, steps stored, how many of those belong to the head (the rest
     were solved for an earlier head and are solved again), steps to solve and their estimated solver hours (None
     where no stored step of that number has a recorded time).
@@ -74,6 +75,10 @@ def plan_rows(store_root: str | os.PathLike | None, heads: list[tuple[str, str]]
     the fingerprint of the most recently saved one are counted as the head's (a guess: the head may yet
     differ) and the rest as stale, except for a head the pipeline builds (BUILT_HEADS) that the store does not
     keep: a rebuild on another machine is not the same mesh, so its steps count as stale.
+
+    A head solved on a mesh per frequency band comes as several parts: ``(subject, "ppm")`` for its full mesh and
+    ``(subject, "ppm/band_1")``, ... for the band meshes (their store folders and projects below the variant's),
+    each with its own ``steps`` (default: all ``n_steps``).
     """
     from mesh2hrtf_io.step_store import project_fingerprint, stored_head  # noqa: PLC0415
 
@@ -84,15 +89,17 @@ def plan_rows(store_root: str | os.PathLike | None, heads: list[tuple[str, str]]
         stored = usable = 0
         to_solve: list[int] = []
         project = projects.get((subject, variant))
+        wanted = (steps or {}).get((subject, variant), list(range(1, n_steps + 1)))
         checked = project is not None and Path(project, "NumCalc").is_dir()
         kept = stored_head(Path(store_root) / subject / variant) if store_root else None
         unknown_head = variant in BUILT_HEADS and kept is None and not checked
         for source in sources:
             folder = Path(store_root) / subject / variant / f"source_{source}" if store_root else None
             prints = _stored_fingerprints(folder, n_steps) if folder is not None and folder.is_dir() else {}
+            prints = {step: stored for step, stored in prints.items() if step in wanted}
             current = project_fingerprint(project, source) if checked else None if unknown_head else _latest_head(prints)
             stored += len(prints)
-            for step in range(1, n_steps + 1):
+            for step in wanted:
                 if step in prints and prints[step][0] == current:
                     usable += 1
                 else:
@@ -100,7 +107,7 @@ def plan_rows(store_root: str | os.PathLike | None, heads: list[tuple[str, str]]
         known = [measured[s] for s in to_solve if s in measured]
         hours = sum(known) / 3600.0 if len(known) == len(to_solve) else None
         rows.append({"subject": subject, "variant": variant, "head_stored": kept is not None,
-                     "steps": n_steps * len(sources), "stored": stored,
+                     "steps": len(wanted) * len(sources), "stored": stored,
                      "usable": usable, "stale": stored - usable, "checked": checked, "unknown_head": unknown_head,
                      "to_solve": len(to_solve), "solver_hours": hours})
     return rows

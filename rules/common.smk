@@ -31,6 +31,7 @@ wildcard_constraints:
     variant="|".join(HRTF_VARIANTS),
     control="|".join(CONTROLS),
     source="[12]",
+    band="[0-9]+",
     first="[0-9]+",
     last="[0-9]+",
 
@@ -87,6 +88,26 @@ def step_store(wildcards):
 
 def solved_steps(wildcards):
     return RUN.steps_of(wildcards.subject, wildcards.variant)
+
+
+def numcalc_step_project(wildcards):
+    return RUN.step_project(wildcards.subject, wildcards.variant, int(wildcards.first))
+
+
+def numcalc_step_store(wildcards):
+    return RUN.step_store(wildcards.subject, wildcards.variant, int(wildcards.first))
+
+
+def band_projects(wildcards):
+    return list(RUN.band_projects(wildcards.subject, wildcards.variant))
+
+
+def band_head_inputs(wildcards):
+    return RUN.band_head_inputs(wildcards.subject, wildcards.variant)
+
+
+def band_export_inputs(wildcards):
+    return RUN.band_export_inputs(wildcards.subject, wildcards.variant, int(wildcards.band))
 
 
 def reference_frequencies(wildcards):

@@ -4,6 +4,9 @@
 # collection into SOFA files.
 # Variants: "reference" = the dataset's ground-truth head (<subject>/head_graded_left.ply); "ppm" = the head
 # with the aligned PPM stitched in; the controls "own_pinna" and "default_ppm" (rules/controls.smk).
+# A head of hrtf.frequency_bands.variants is solved with NumCalc on a mesh per frequency band: band_head remeshes it
+# coarser (the ear-canal sources kept), export_band_project exports that mesh with the whole frequency set, the
+# steps of each band are solved in its project, and collect_sofa merges them into the full project's results.
 
 
 rule export_project:
@@ -27,9 +30,51 @@ rule export_project:
         "../workflow/scripts/export_project.py"
 
 
+rule band_head:
+    input:
+        unpack(band_head_inputs),
+    output:
+        mesh="results/{subject}/hrtf/{variant}/band_{band}/head.ply",
+        sources="results/{subject}/hrtf/{variant}/band_{band}/sources.json",
+    log:
+        "logs/hrtf/band_head/{subject}_{variant}_{band}.log",
+    benchmark:
+        "benchmarks/timings/hrtf/band_head/{subject}_{variant}_{band}.tsv"
+    params:
+        bands=lambda wc: RUN.band_remesh_bands(int(wc.band)),
+        sides=lambda wc: ["left", "right"] if config["hrtf"]["ears"] == "both" else [config["hrtf"]["ears"]],
+    threads: 1
+    resources:
+        mem_mb=measured_mem_mb("remesh"),
+        runtime=measured_runtime("remesh"),
+    script:
+        "../workflow/scripts/band_head.py"
+
+
+rule export_band_project:
+    input:
+        unpack(band_export_inputs),
+    output:
+        project=directory("results/{subject}/hrtf/{variant}/band_{band}/project"),
+    log:
+        "logs/hrtf/export_band_project/{subject}_{variant}_{band}.log",
+    benchmark:
+        "benchmarks/timings/hrtf/export_band_project/{subject}_{variant}_{band}.tsv"
+    params:
+        settings=lambda wc: config["hrtf"],
+        title=lambda wc: f"{wc.subject}_{wc.variant}_band_{wc.band}",
+        head_store=lambda wc: RUN.band_store_of(wc.subject, wc.variant, int(wc.band)),
+    threads: 1
+    resources:
+        mem_mb=measured_mem_mb("export_project"),
+        runtime=measured_runtime("export_project"),
+    script:
+        "../workflow/scripts/export_project.py"
+
+
 rule solve_numcalc_step:
     input:
-        project="results/{subject}/hrtf/{variant}/project",
+        project=numcalc_step_project,
     output:
         status="results/{subject}/hrtf/{variant}/steps/source_{source}/steps_{first}-{last}.json",
     log:
@@ -39,7 +84,7 @@ rule solve_numcalc_step:
     params:
         numcalc=lambda wc: config["hrtf"]["numcalc"],
         max_iterations=lambda wc: config["hrtf"]["max_iterations"],
-        store=step_store,
+        store=numcalc_step_store,
     threads: 1
     resources:
         mem_mb=numcalc_step_mem_mb,
@@ -73,6 +118,7 @@ rule solve_embedded:
 rule collect_sofa:
     input:
         project="results/{subject}/hrtf/{variant}/project",
+        bands=band_projects,
         steps=solved_steps,
     output:
         hrtf="results/{subject}/hrtf/{variant}/HRTF.sofa",
@@ -81,6 +127,7 @@ rule collect_sofa:
         "logs/hrtf/collect_sofa/{subject}_{variant}.log",
     params:
         hrir=lambda wc: config["hrtf"]["hrir"],
+        band_steps=lambda wc: RUN.band_projects(wc.subject, wc.variant),
     benchmark:
         "benchmarks/timings/hrtf/collect_sofa/{subject}_{variant}.tsv"
     threads: 1

@@ -71,7 +71,8 @@ def remesh_graded(mesh: trimesh.Trimesh, pinna_points_mm: np.ndarray, bands=DEFA
                   iterations: int = 8, keep_centre_mm: np.ndarray | None = None,
                   keep_radius_mm: float = 0.0) -> trimesh.Trimesh:
     """Remesh ``mesh`` band by band around the pinna (points in mm); returns a new closed mesh. Faces whose
-    centroids lie within ``keep_radius_mm`` of ``keep_centre_mm`` (e.g. the ear-canal source) are kept as they are."""
+    centroids lie within ``keep_radius_mm`` of ``keep_centre_mm`` (one point or several, e.g. the ear-canal sources)
+    are kept as they are."""
     pymeshlab = _pymeshlab()
     current = mesh
     lower = 0.0
@@ -79,7 +80,8 @@ def remesh_graded(mesh: trimesh.Trimesh, pinna_points_mm: np.ndarray, bands=DEFA
         distance = face_distance_to(pinna_points_mm, current)
         selected = (distance >= lower) & (distance < band.up_to_mm)
         if keep_centre_mm is not None:
-            selected &= np.linalg.norm(current.triangles_center - keep_centre_mm, axis=1) >= keep_radius_mm
+            centres = np.atleast_2d(keep_centre_mm)
+            selected &= cKDTree(centres).query(current.triangles_center)[0] >= keep_radius_mm
         lower = band.up_to_mm
         if not selected.any():
             continue

@@ -1,5 +1,8 @@
 """stitching.frequency_bands: a coarser mesh of a real head for a band of low frequencies keeps the ear-canal
 source's triangles exactly and the surface closed, with far fewer elements."""
+import shutil
+from pathlib import Path
+
 import numpy as np
 import pytest
 import trimesh
@@ -23,3 +26,59 @@ def test_a_band_mesh_of_a_real_head_keeps_the_source(sonicom):
     assert min_angles_deg(mesh.vertices, mesh.faces).min() > 5.0
     # the surface stays where it was: every band-mesh vertex within the coarsest band's deviation of the head
     assert trimesh.proximity.closest_point(head, mesh.vertices[::20])[1].max() < 1.2
+
+
+def test_a_banded_head_is_solved_per_band_and_collected_as_one(tmp_path):
+    """The workflow with hrtf.frequency_bands and NumCalc on a sphere 'head' (2 frequencies, both ears): the step of
+    the low band is solved in the band mesh's project and merged into the full project, the other on the full mesh,
+    and one HRIR file comes out. Needs NumCalc (skipped where it is not installed)."""
+    import json
+    import subprocess
+    import sys
+
+    import sofar
+    import yaml
+
+    from mesh2hrtf_io.numcalc import NumCalcError, find_numcalc
+    from mesh2hrtf_io.results import read_eval_grid_pressure
+
+    try:
+        numcalc = find_numcalc()
+    except NumCalcError as exc:
+        pytest.skip(str(exc))
+    root = Path(__file__).resolve().parents[1]
+    work = tmp_path / "project"
+    for folder in ("workflow", "rules", "config"):
+        shutil.copytree(root / folder, work / folder)
+    subject = tmp_path / "data" / "S1"
+    subject.mkdir(parents=True)
+    head = trimesh.creation.icosphere(subdivisions=3, radius=87.5)  # 1,280 faces of ~14 mm
+    head.export(subject / "head_graded_left.ply")
+    head.export(subject / "pinna_left_crop.ply")
+    config = yaml.safe_load((work / "config" / "config.yaml").read_text())
+    config["data_root"] = str(tmp_path / "data")
+    config["hrtf"].update(enabled=True, solver="numcalc", numcalc=str(numcalc), polar_step_deg=15.0,
+                          frequencies_hz={"min": 500.0, "max": 1000.0, "step": 500.0},
+                          frequency_bands={"variants": ["reference"],
+                                           "bands": [{"up_to_hz": 600.0, "edges_mm": [25.0, 25.0, 25.0, 25.0]}]})
+    (work / "config" / "banded.yaml").write_text(yaml.safe_dump(config))
+    rules = ["--allowed-rules", "band_head", "export_band_project", "export_project", "solve_numcalc_step",
+             "collect_sofa"]
+    done = subprocess.run([sys.executable, "-m", "snakemake", "results/S1/hrtf/reference/HRIR.sofa", *rules, "--cores",
+                           "2", "--configfile", "config/banded.yaml"], cwd=work, capture_output=True, text=True,
+                          timeout=900)
+    assert done.returncode == 0, done.stderr[-3000:]
+    base = work / "results/S1/hrtf/reference"
+    band = json.loads((base / "band_1/sources.json").read_text())
+    assert band["elements"] < band["elements_full"]  # a coarser mesh for the 500 Hz step
+    for source in (1, 2):
+        full_folder, band_folder = base / f"project/NumCalc/source_{source}", base / f"band_1/project/NumCalc/source_{source}"
+        n_points = len(read_eval_grid_pressure(full_folder, 2))
+        # step 1 (500 Hz) solved on the band mesh and merged; step 2 (1 kHz) on the full mesh only
+        np.testing.assert_array_equal(read_eval_grid_pressure(full_folder, 1, n_points),
+                                      read_eval_grid_pressure(band_folder, 1, n_points))
+        assert not (band_folder / "be.out" / "be.2").exists()
+        statuses = json.loads((base / f"steps/source_{source}/steps_1-1.json").read_text())["steps"]
+        assert statuses[0]["step"] == 1
+    hrir = sofar.read_sofa(str(base / "HRIR.sofa"), verify=True)
+    assert hrir.Data_IR.shape[1] == 2

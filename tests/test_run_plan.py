@@ -107,3 +107,32 @@ def test_configfile_settings_spell_out_files_outside_the_checkout(tmp_path):
     inside, settings = configfile_settings([str(ROOT / "config/paper_sonicom.yaml"), str(outside)], ROOT)
     assert inside == [os.path.join("config", "paper_sonicom.yaml")]
     assert settings == [f"{outside}: hrtf.steps_per_job = 4"]
+
+
+def test_a_banded_head_solves_each_band_in_its_own_project(in_root, sonicom):
+    bands = {"variants": ["ppm"], "bands": [{"up_to_hz": 3000.0, "edges_mm": [3.0, 5.0, 8.0, 12.0]},
+                                            {"up_to_hz": 6000.0, "edges_mm": [2.0, 3.0, 5.0, 8.0]}]}
+    run = RunPlan(_config("config/paper_sonicom.yaml", hrtf={"frequency_bands": bands, "steps_per_job": 4}))
+    assert run.banded("ppm") and not run.banded("original")
+    assert [len(steps) for steps in run.band_steps()] == [11, 7] and run.full_mesh_steps()[0] == 19
+    # jobs never straddle a band's edge: 4 steps each within a band
+    names = [Path(s).name for s in run.steps_of("P143", "ppm") if "source_1" in s]
+    assert names == ["steps_1-4.json", "steps_5-8.json", "steps_9-11.json", "steps_12-15.json", "steps_16-18.json",
+                     "steps_19-22.json", "steps_23-26.json", "steps_27-30.json", "steps_31-34.json",
+                     "steps_35-38.json", "steps_39-40.json"]
+    assert run.step_project("P143", "ppm", 12) == "results/P143/hrtf/ppm/band_2/project"
+    assert run.step_project("P143", "ppm", 19) == "results/P143/hrtf/ppm/project"
+    assert run.step_project("P143", "original", 1) == "results/P143/hrtf/original/project"
+    assert run.step_store("P143", "ppm", 1) == "evaluation/sonicom/steps/P143/ppm/band_1"
+    assert run.band_projects("P143", "ppm") == {"results/P143/hrtf/ppm/band_1/project": list(range(1, 12)),
+                                                "results/P143/hrtf/ppm/band_2/project": list(range(12, 19))}
+    assert run.band_remesh_bands(2)[0] == {"up_to_mm": 12.0, "edge_mm": 2.0, "max_deviation_mm": 0.2}
+    assert run.band_export_inputs("P143", "ppm", 1)["sources"] == "results/P143/hrtf/ppm/band_1/sources.json"
+    # the solve plan has a row per band mesh, each with its own steps; the full mesh's steps 19-40 of the committed
+    # PPM head are in the store for this very head (the band meshes' are not yet)
+    plan = run.solve_plan_text(lambda: 2)
+    assert "P143 ppm: 0 of 22 steps to solve (22 stored for this head)" in plan
+    assert "P143 ppm/band_1: 11 of 11 steps to solve (0 stored)" in plan and "P143 ppm/band_2: 7 of 7" in plan
+    bad = {**bands, "bands": [{"up_to_hz": 3000.0, "edges_mm": [3.0, 5.0]}]}
+    with pytest.raises(RunConfigError, match="2 edge lengths for the 4 distance bands"):
+        RunPlan(_config("config/paper_sonicom.yaml", hrtf={"frequency_bands": bad}))

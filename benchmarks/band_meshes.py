@@ -64,7 +64,7 @@ def main() -> None:
     from mesh2hrtf_io.numcalc import solve_project_numcalc  # noqa: PLC0415
     from mesh2hrtf_io.project_reader import read_project  # noqa: PLC0415
     from mesh2hrtf_io.results import read_eval_grid_pressure  # noqa: PLC0415
-    from mesh2hrtf_io.step_store import project_fingerprint, solve_seconds  # noqa: PLC0415
+    from mesh2hrtf_io.step_store import project_fingerprint, solve_cpu_seconds, solve_seconds  # noqa: PLC0415
     from stitching.frequency_bands import band_mesh  # noqa: PLC0415
     from stitching.remesh import Band  # noqa: PLC0415
 
@@ -110,7 +110,7 @@ def main() -> None:
                     if (solved.sources[0].folder / "be.out" / f"be.{i + 1}" / "status.json").is_file() else {}
                     for i in range(len(steps))]
         shutil.rmtree(project)
-    cpu_band = [solve_seconds(s) for s in statuses] if all(statuses) else list(result.get("seconds", []))
+    cpu_band = [solve_cpu_seconds(s) for s in statuses] if all(statuses) else list(result.get("seconds", []))
     rows = []
     for i, step in enumerate(steps):
         difference = np.abs(20 * np.log10(np.abs(band[i]) / np.abs(reference[i])))

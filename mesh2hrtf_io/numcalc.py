@@ -16,6 +16,7 @@ import logging
 import os
 import re
 import shutil
+import resource
 import subprocess
 import sys
 import time
@@ -100,6 +101,13 @@ def estimate_memory(numcalc: Path, source_folder: str | os.PathLike) -> list[Ste
             except ValueError:
                 continue  # header lines
     return estimates
+
+
+def _children_cpu_seconds() -> float:
+    """CPU seconds (user + system) of this process's finished children: NumCalc's own time, unlike the wall clock
+    unaffected by other work on the machine."""
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
 
 
 def step_done(source_folder: str | os.PathLike, step: int, expected_nodes: int) -> bool:
@@ -202,14 +210,14 @@ def run_step(numcalc: Path, source_folder: str | os.PathLike, step: int, expecte
         if _already_tried(previous, iterations, tree):
             continue
         folder = source_folder if tree == "project" else _default_tree_folder(source_folder)
-        start = time.perf_counter()
+        start, cpu_start = time.perf_counter(), _children_cpu_seconds()
         try:
             result = subprocess.run([str(numcalc), "-istart", str(step), "-iend", str(step), "-nitermax",
                                      str(iterations)], cwd=folder, capture_output=True, text=True,
                                     timeout=timeout_s)
         except (OSError, subprocess.TimeoutExpired) as exc:
             raise NumCalcError(f"{folder}: NumCalc step {step} could not run ({exc})") from exc
-        seconds = time.perf_counter() - start
+        seconds, cpu_seconds = time.perf_counter() - start, _children_cpu_seconds() - cpu_start
         if folder != source_folder:
             _take_results(folder, source_folder, step, results=result.returncode == 0)
         log_file = source_folder / f"NC{step}-{step}.out"
@@ -222,7 +230,7 @@ def run_step(numcalc: Path, source_folder: str | os.PathLike, step: int, expecte
                                f"{(log_text or result.stdout + result.stderr)[-1500:]}")
         stopped = last_residual(result.stdout)
         attempt = {"max_iterations": iterations, "cluster_tree": tree, "seconds": round(seconds, 2),
-                   "problems": problems}
+                   "cpu_seconds": round(cpu_seconds, 2), "problems": problems}
         if stopped is not None:
             attempt["iterations"], attempt["relative_residual"] = stopped[0], stopped[1]
         attempts.append(attempt)

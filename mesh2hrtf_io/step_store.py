@@ -123,6 +123,15 @@ def solve_seconds(status: dict | None) -> float:
     return float(status.get("seconds", 0.0))
 
 
+def solve_cpu_seconds(status: dict | None) -> float:
+    """CPU seconds of a step's NumCalc attempts where every attempt recorded them (since 2026-12-04), else its
+    wall-clock seconds (:func:`solve_seconds`): NumCalc is single-threaded, so the two agree on an idle core."""
+    attempts = (status or {}).get("attempts")
+    if attempts and all("cpu_seconds" in attempt for attempt in attempts):
+        return float(sum(attempt["cpu_seconds"] for attempt in attempts))
+    return solve_seconds(status)
+
+
 def stored_head(store: str | os.PathLike | None) -> Path | None:
     """The head mesh kept in a variant's store folder (``head.ply``, mm), None when there is none."""
     if not store:

@@ -33,7 +33,8 @@ KEEP_AROUND_SOURCE_MM = 5.0
 def band_mesh(head: trimesh.Trimesh, source_faces: np.ndarray | Sequence[np.ndarray], pinna_points_mm: np.ndarray,
               bands: tuple[Band, ...], keep_mm: float = KEEP_AROUND_SOURCE_MM,
               source: str = "head") -> tuple[trimesh.Trimesh, np.ndarray | list[np.ndarray]]:
-    """``head`` remeshed by distance to the pinna with ``bands`` (coarser than the full mesh's), the faces within
+    """``head`` remeshed by distance to the pinna with ``bands`` (coarser than the full mesh's; a distance band whose
+    edges are already as long is kept, so the band mesh is nowhere finer than the head), the faces within
     ``keep_mm`` of each source's centre untouched, slivers repaired away from them. ``source_faces``: the face
     indices of one source, or a list of them (one per ear). Returns the band mesh and the indices of the source
     faces in it (the same triangles, found again by their centroids), in the form they were given.
@@ -46,7 +47,8 @@ def band_mesh(head: trimesh.Trimesh, source_faces: np.ndarray | Sequence[np.ndar
     one = isinstance(source_faces, np.ndarray) and source_faces.ndim == 1
     sources = [np.asarray(source_faces, dtype=np.int64)] if one else [np.asarray(f, np.int64) for f in source_faces]
     centres = np.array([head.triangles_center[faces].mean(axis=0) for faces in sources])
-    mesh = remesh_graded(head, pinna_points_mm, bands, keep_centre_mm=centres, keep_radius_mm=keep_mm)
+    mesh = remesh_graded(head, pinna_points_mm, bands, keep_centre_mm=centres, keep_radius_mm=keep_mm,
+                         coarsen_only=True)
     mesh = remove_slivers(mesh)
     tree = cKDTree(mesh.triangles_center)
     found = []

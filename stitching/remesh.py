@@ -69,10 +69,11 @@ def face_distance_to(points_mm: np.ndarray, mesh: trimesh.Trimesh) -> np.ndarray
 
 def remesh_graded(mesh: trimesh.Trimesh, pinna_points_mm: np.ndarray, bands=DEFAULT_BANDS,
                   iterations: int = 8, keep_centre_mm: np.ndarray | None = None,
-                  keep_radius_mm: float = 0.0) -> trimesh.Trimesh:
+                  keep_radius_mm: float = 0.0, coarsen_only: bool = False) -> trimesh.Trimesh:
     """Remesh ``mesh`` band by band around the pinna (points in mm); returns a new closed mesh. Faces whose
     centroids lie within ``keep_radius_mm`` of ``keep_centre_mm`` (one point or several, e.g. the ear-canal sources)
-    are kept as they are."""
+    are kept as they are. With ``coarsen_only`` a band whose edges are already longer than its target (less than
+    25 % shorter) is kept: the mesh gets nowhere finer (a band mesh for low frequencies)."""
     pymeshlab = _pymeshlab()
     current = mesh
     lower = 0.0
@@ -87,7 +88,7 @@ def remesh_graded(mesh: trimesh.Trimesh, pinna_points_mm: np.ndarray, bands=DEFA
             continue
         face_edges = current.faces_unique_edges[selected].ravel()
         median_edge = float(np.median(current.edges_unique_length[np.unique(face_edges)]))
-        if abs(median_edge / band.edge_mm - 1) <= 0.25:
+        if abs(median_edge / band.edge_mm - 1) <= 0.25 or (coarsen_only and median_edge >= 0.75 * band.edge_mm):
             log.info("band < %.0f mm: median edge %.2f mm already near %.1f mm; kept", band.up_to_mm, median_edge,
                      band.edge_mm)
             continue

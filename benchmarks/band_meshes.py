@@ -63,31 +63,21 @@ def main() -> None:
     from mesh2hrtf_io import sphere_grid, write_project  # noqa: PLC0415
     from mesh2hrtf_io.numcalc import solve_project_numcalc  # noqa: PLC0415
     from mesh2hrtf_io.project_reader import read_project  # noqa: PLC0415
-    from mesh2hrtf_io.results import read_eval_grid_pressure  # noqa: PLC0415
-    from mesh2hrtf_io.step_store import project_fingerprint, solve_cpu_seconds, solve_seconds  # noqa: PLC0415
-    from stitching.frequency_bands import band_mesh  # noqa: PLC0415
-    from stitching.remesh import Band  # noqa: PLC0415
+    from mesh2hrtf_io.results import read_eval_grid_pressure, step_status  # noqa: PLC0415
+    from mesh2hrtf_io.step_store import solve_cpu_seconds  # noqa: PLC0415
+    from stitching.frequency_bands import band_mesh, band_mesh_bands  # noqa: PLC0415
 
     full_dir = ROOT / f"results/{args.subject}/hrtf/{args.head}/project"
     if not full_dir.is_dir():
         raise SystemExit(f"{full_dir} is missing: export it first (snakemake --configfile config/paper_sonicom.yaml "
                          f"{full_dir.relative_to(ROOT)})")
     full = read_project(full_dir)
-    store = ROOT / "evaluation" / "sonicom" / "steps" / args.subject / args.head / "source_1"
-    fingerprint = project_fingerprint(full_dir, 1)
     steps = [i + 1 for i, f in enumerate(full.frequencies_hz) if args.from_hz < f <= args.up_to_hz]
-    reference, cpu_full = [], []
-    for step in steps:
-        with np.load(store / f"step_{step:03d}.npz") as kept:
-            if str(kept["fingerprint"]) != fingerprint:
-                raise SystemExit(f"{store}: stored for another project")
-            reference.append(kept["pressure"])
-            cpu_full.append(solve_seconds(json.loads(str(kept["status_json"]))))
+    reference, cpu_full = _committed_steps(full_dir, args.subject, args.head, steps)
     edges = [float(e) for e in args.edges.split(",")]
     pinna = trimesh.load(ROOT.parent / "shared/data/sonicom" / args.subject / "pinna_left_crop.ply", process=False)
     start = time.perf_counter()
-    bands = tuple(Band(np.inf if up_to is None else up_to, edge, max(0.05, edge / 10.0))
-                  for up_to, edge in zip(DISTANCES_MM, edges))
+    bands = band_mesh_bands(DISTANCES_MM, edges)
     mesh, source = band_mesh(trimesh.Trimesh(full.vertices_m * 1000.0, full.faces, process=False),
                              full.sources[0].elements, np.asarray(pinna.vertices), bands, args.keep_mm,
                              f"{args.subject} {args.head}")
@@ -106,9 +96,7 @@ def main() -> None:
         result = solve_project_numcalc(project, args.numcalc)
         band = [read_eval_grid_pressure(solved.sources[0].folder, i + 1, len(full.evaluation_points_m))
                 for i in range(len(steps))]
-        statuses = [json.loads((solved.sources[0].folder / "be.out" / f"be.{i + 1}" / "status.json").read_text())
-                    if (solved.sources[0].folder / "be.out" / f"be.{i + 1}" / "status.json").is_file() else {}
-                    for i in range(len(steps))]
+        statuses = [step_status(solved.sources[0].folder, i + 1) or {} for i in range(len(steps))]
         shutil.rmtree(project)
     cpu_band = [solve_cpu_seconds(s) for s in statuses] if all(statuses) else list(result.get("seconds", []))
     rows = []
@@ -130,9 +118,7 @@ def main() -> None:
                "max_p95_db": round(max(r["p95_db"] for r in rows), 3)}
     summary["ratio"] = round(summary["cpu_seconds_band"] / summary["cpu_seconds_full"], 3)
     KEPT.mkdir(parents=True, exist_ok=True)
-    edges_name = "-".join(f"{e:g}" for e in edges)
-    band_name = f"{args.from_hz:.0f}_to_{args.up_to_hz:.0f}" if args.from_hz > 0 else f"up_to_{args.up_to_hz:.0f}"
-    name = f"{args.subject}_{args.head}_{band_name}_edges_{edges_name}"
+    name = _result_name(args.subject, args.head, args.from_hz, args.up_to_hz, edges)
     (KEPT / f"{name}.json").write_text(json.dumps({**summary, "steps": rows}, indent=2) + "\n")
     # the band's pressures at the evaluation grid (steps, points), for judging a banded head by QE/PE (--judge)
     np.savez_compressed(KEPT / f"{name}.npz", steps=np.asarray(steps), pressure=np.asarray(band),
@@ -140,41 +126,44 @@ def main() -> None:
     print(json.dumps(summary))
 
 
+def _result_name(subject: str, head: str, from_hz: float, up_to_hz: float, edges_mm) -> str:
+    """The file name (no suffix) of one band's results in benchmarks/results/band_meshes/."""
+    band = f"{from_hz:.0f}_to_{up_to_hz:.0f}" if from_hz > 0 else f"up_to_{up_to_hz:.0f}"
+    return f"{subject}_{head}_{band}_edges_{'-'.join(f'{float(e):g}' for e in edges_mm)}"
+
+
 def _band_names(subject: str, head: str, band_set: str) -> list[str]:
     names = []
     for band in band_set.split(";"):
         limits, edges = band.split(":")
         low, high = (float(x) for x in limits.split("-"))
-        edges_name = "-".join(f"{float(e):g}" for e in edges.split(","))
-        band_name = f"{low:.0f}_to_{high:.0f}" if low > 0 else f"up_to_{high:.0f}"
-        names.append(f"{subject}_{head}_{band_name}_edges_{edges_name}")
+        names.append(_result_name(subject, head, low, high, edges.split(",")))
     return names
 
 
-def _collected(project_dir: Path, pressures: list[np.ndarray], folder: Path) -> Path:
-    """A left-ear HRTF SOFA of ``pressures`` (per step, at the evaluation grid) written into a copy of the project
-    and collected as the workflow collects (48 kHz, 320 taps)."""
-    from mesh2hrtf_io.hrtf_job import collect  # noqa: PLC0415
-    from mesh2hrtf_io.project_reader import read_project  # noqa: PLC0415
-    from mesh2hrtf_io.results import write_eval_grid_pressure  # noqa: PLC0415
+def _committed_steps(full_dir: Path, subject: str, head: str, steps) -> tuple[list[np.ndarray], list[float]]:
+    """The committed full-mesh pressures (left ear, at the evaluation grid) and wall-clock seconds of ``steps`` of a
+    head, checked against its exported project's fingerprint."""
+    from mesh2hrtf_io.step_store import project_fingerprint, solve_seconds  # noqa: PLC0415
 
-    copy = folder / "project"
-    shutil.copytree(project_dir, copy)
-    project = read_project(copy)
-    node_ids = np.concatenate([grid.node_ids for grid in project.grids])
-    for step, pressure in enumerate(pressures, start=1):
-        write_eval_grid_pressure(project.sources[0].folder, step, node_ids, pressure)
-    hrtf = folder / "HRTF.sofa"
-    collect(copy, hrtf, folder / "HRIR.sofa", {"sampling_rate_hz": 48000.0, "n_samples": 320})
-    return hrtf
+    store = ROOT / "evaluation" / "sonicom" / "steps" / subject / head / "source_1"
+    fingerprint = project_fingerprint(full_dir, 1)
+    pressures, seconds = [], []
+    for step in steps:
+        with np.load(store / f"step_{step:03d}.npz") as kept:
+            if str(kept["fingerprint"]) != fingerprint:
+                raise SystemExit(f"{store}: stored for another project")
+            pressures.append(kept["pressure"])
+            seconds.append(solve_seconds(json.loads(str(kept["status_json"]))))
+    return pressures, seconds
 
 
 def judge_heads(heads: list[tuple[str, str]], band_set: str) -> dict:
     """Each head with the kept bands of ``band_set`` in place of its full-mesh steps, against its full-mesh solve:
     QE/PE by the paper's protocol (the full-mesh ``original`` of the subject as reference and template, S at 8 %),
     NumCalc CPU hours of both (the full mesh's from the committed step statuses, the bands' from their solve)."""
+    from mesh2hrtf_io.hrtf_job import collect_pressures  # noqa: PLC0415
     from mesh2hrtf_io.project_reader import read_project  # noqa: PLC0415
-    from mesh2hrtf_io.step_store import project_fingerprint, solve_seconds  # noqa: PLC0415
     from reporting.paper_protocol import paper_protocol  # noqa: PLC0415
 
     results = {}
@@ -183,16 +172,8 @@ def judge_heads(heads: list[tuple[str, str]], band_set: str) -> dict:
         if not full_dir.is_dir():
             raise SystemExit(f"{full_dir} is missing: export it first (snakemake --configfile config/paper_sonicom.yaml "
                              f"{full_dir.relative_to(ROOT)})")
-        store = ROOT / "evaluation" / "sonicom" / "steps" / subject / head / "source_1"
-        fingerprint = project_fingerprint(full_dir, 1)
         n_steps = len(read_project(full_dir).frequencies_hz)
-        full, cpu_full = [], []
-        for step in range(1, n_steps + 1):
-            with np.load(store / f"step_{step:03d}.npz") as kept:
-                if str(kept["fingerprint"]) != fingerprint:
-                    raise SystemExit(f"{store}: stored for another project")
-                full.append(kept["pressure"])
-                cpu_full.append(solve_seconds(json.loads(str(kept["status_json"]))))
+        full, cpu_full = _committed_steps(full_dir, subject, head, range(1, n_steps + 1))
         banded, cpu_banded, p95 = list(full), list(cpu_full), []
         for name in _band_names(subject, head, band_set):
             if not (KEPT / f"{name}.npz").is_file():
@@ -202,8 +183,8 @@ def judge_heads(heads: list[tuple[str, str]], band_set: str) -> dict:
                     banded[int(step) - 1], cpu_banded[int(step) - 1] = pressure, float(seconds)
             p95.append(json.loads((KEPT / f"{name}.json").read_text())["max_p95_db"])
         with tempfile.TemporaryDirectory() as tmp:
-            sofa_full = _collected(full_dir, full, Path(tmp) / "full")
-            sofa_banded = _collected(full_dir, banded, Path(tmp) / "banded")
+            sofa_full = collect_pressures(full_dir, full, Path(tmp) / "full")
+            sofa_banded = collect_pressures(full_dir, banded, Path(tmp) / "banded")
             reference = (sofa_full if head == "original" else
                          ROOT / "evaluation" / "sonicom" / "sofa" / f"{subject}_original_left_HRTF.sofa")
             protocol = paper_protocol(reference, {"full": sofa_full, "banded": sofa_banded},

@@ -250,21 +250,11 @@ def _step_store_pressures(head: str) -> tuple[np.ndarray, list[float]]:
 
 
 def _sofa_of(head: str, pressures: np.ndarray, folder: Path) -> Path:
-    """A left-ear HRTF SOFA of ``pressures`` (steps, points) written into a copy of the head's project and collected
-    as the workflow collects (config hrtf.hrir)."""
-    from mesh2hrtf_io.hrtf_job import collect  # noqa: PLC0415
-    from mesh2hrtf_io.project_reader import read_project  # noqa: PLC0415
-    from mesh2hrtf_io.results import write_eval_grid_pressure  # noqa: PLC0415
+    """A left-ear HRTF SOFA of ``pressures`` (steps, points) collected as the workflow collects, in a copy of the
+    head's project (:func:`mesh2hrtf_io.hrtf_job.collect_pressures`)."""
+    from mesh2hrtf_io.hrtf_job import collect_pressures  # noqa: PLC0415
 
-    project_dir = folder / head / "project"
-    shutil.copytree(ROOT / f"results/{SUBJECT}/hrtf/{head}/project", project_dir, dirs_exist_ok=True)
-    project = read_project(project_dir)
-    node_ids = np.concatenate([grid.node_ids for grid in project.grids])
-    for step, pressure in enumerate(pressures, start=1):
-        write_eval_grid_pressure(project.sources[0].folder, step, node_ids, pressure)
-    hrtf, hrir = folder / head / "HRTF.sofa", folder / head / "HRIR.sofa"
-    collect(project_dir, hrtf, hrir, {"sampling_rate_hz": 48000.0, "n_samples": 320})
-    return hrtf
+    return collect_pressures(ROOT / f"results/{SUBJECT}/hrtf/{head}/project", pressures, folder / head)
 
 
 def paper_protocol(reference_hrtf: Path, conditions: dict[str, Path]) -> dict:

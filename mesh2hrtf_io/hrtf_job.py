@@ -190,3 +190,22 @@ def collect(project: str | os.PathLike, hrtf_path: str | os.PathLike, hrir_path:
         for kind, target in (("HRTF", hrtf_path), ("HRIR", hrir_path)):
             os.replace(written[f"{kind}_{name}.sofa"], target)
     log.info("collected %s and %s", hrtf_path, hrir_path)
+
+
+def collect_pressures(project: str | os.PathLike, pressures, folder: str | os.PathLike,
+                      hrir: dict | None = None) -> Path:
+    """SOFA files of given left-ear ``pressures`` (per step, at the project's evaluation grid; e.g. steps kept in a
+    step store or solved elsewhere) as the workflow collects them: written into a copy of ``project`` in ``folder``
+    and collected there. Returns the HRTF file (``folder/HRTF.sofa``; ``HRIR.sofa`` beside it)."""
+    from .results import write_eval_grid_pressure  # noqa: PLC0415
+
+    folder = Path(folder)
+    copy = folder / "project"
+    shutil.copytree(project, copy)
+    solved = read_project(copy)
+    node_ids = np.concatenate([grid.node_ids for grid in solved.grids])
+    for step, pressure in enumerate(pressures, start=1):
+        write_eval_grid_pressure(solved.sources[0].folder, step, node_ids, pressure)
+    hrtf = folder / "HRTF.sofa"
+    collect(copy, hrtf, folder / "HRIR.sofa", hrir or {"sampling_rate_hz": 48000.0, "n_samples": 320})
+    return hrtf

@@ -184,13 +184,18 @@ class RunPlan:
             # a PPM head built now and kept at the export: the landmarks of its fit are kept with it
             # (reporting.kept_fit)
             inputs.update(self.fit_landmark_inputs(subject, prefix="fit"))
-        if self.hrtf["grid"] == "reference_sofa":
-            given = self.given_reference_sofa(subject)
-            if not given.is_file():
-                raise RunConfigError(f"config hrtf.grid=reference_sofa: {given} is missing; give the reference HRIRs "
-                                     "or use hrtf.grid: sagittal")
-            inputs["grid_sofa"] = str(given)
-        return inputs
+        return {**inputs, **self.grid_inputs(subject)}
+
+    def grid_inputs(self, subject: str) -> dict:
+        """With config hrtf.grid = reference_sofa, ``{"grid_sofa": the subject's reference SOFA}`` (its directions
+        are the project's grid), else nothing."""
+        if self.hrtf["grid"] != "reference_sofa":
+            return {}
+        given = self.given_reference_sofa(subject)
+        if not given.is_file():
+            raise RunConfigError(f"config hrtf.grid=reference_sofa: {given} is missing; give the reference HRIRs "
+                                 "or use hrtf.grid: sagittal")
+        return {"grid_sofa": str(given)}
 
     def sources(self) -> list[str]:
         """Source folders of a project: source_1 (left ear) and, for both ears, source_2 (right ear)."""
@@ -287,9 +292,12 @@ class RunPlan:
 
     def band_remesh_bands(self, band: int) -> list[dict]:
         """The remeshing bands of band mesh ``band``: stitch.bands' distances with the band's edge lengths."""
-        edges = self.frequency_bands[band - 1]["edges_mm"]
-        return [{"up_to_mm": distance["up_to_mm"], "edge_mm": float(edge), "max_deviation_mm": max(0.05, edge / 10.0)}
-                for distance, edge in zip(self.config["stitch"]["bands"], edges)]
+        from stitching.frequency_bands import band_mesh_bands  # noqa: PLC0415
+
+        distances = [distance["up_to_mm"] for distance in self.config["stitch"]["bands"]]
+        bands = band_mesh_bands(distances, self.frequency_bands[band - 1]["edges_mm"])
+        return [{"up_to_mm": distance, "edge_mm": b.edge_mm, "max_deviation_mm": b.max_deviation_mm}
+                for distance, b in zip(distances, bands)]
 
     def band_head_inputs(self, subject: str, variant: str) -> dict:
         """What a band mesh is made from: the variant's full head (mm) and the subject's left pinna crop (the
@@ -309,10 +317,7 @@ class RunPlan:
         else:
             base = f"results/{subject}/hrtf/{variant}/band_{band}"
             inputs = {"head": f"{base}/head.ply", "sources": f"{base}/sources.json"}
-        full = self.hrtf_export_inputs(subject, variant)
-        if "grid_sofa" in full:
-            inputs["grid_sofa"] = full["grid_sofa"]
-        return inputs
+        return {**inputs, **self.grid_inputs(subject)}
 
     def solved_variants(self, subject: str) -> list[str]:
         """The heads whose HRTFs are solved for a subject: the reference head when the dataset has no reference

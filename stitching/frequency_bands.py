@@ -65,6 +65,13 @@ def band_mesh(head: trimesh.Trimesh, source_faces: np.ndarray | Sequence[np.ndar
     return mesh, (found[0] if one else found)
 
 
+def band_mesh_bands(distances_mm: Sequence[float | None], edges_mm: Sequence[float]) -> tuple[Band, ...]:
+    """The remeshing bands of a band mesh: the full mesh's distances to the pinna (mm, None: the rest of the head)
+    with the band's edge lengths, each allowed a surface deviation of a tenth of its edge (at least 0.05 mm)."""
+    return tuple(Band(np.inf if distance is None else float(distance), float(edge), max(0.05, float(edge) / 10.0))
+                 for distance, edge in zip(distances_mm, edges_mm))
+
+
 def write_band_head(head_path: str | os.PathLike, pinna_path: str | os.PathLike, sides: Sequence[str],
                     bands: tuple[Band, ...], mesh_path: str | os.PathLike, sources_path: str | os.PathLike) -> dict:
     """The band mesh of the head at ``head_path`` (mm) and the faces of its ear-canal sources (``sides``: 'left',

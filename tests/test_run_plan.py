@@ -131,7 +131,9 @@ def test_a_banded_head_solves_each_band_in_its_own_project(in_root, sonicom):
     # the solve plan has a row per band mesh, each with its own steps; the full mesh's steps 19-40 of the committed
     # PPM head are in the store for this very head (the band meshes' are not yet)
     plan = run.solve_plan_text(lambda: 2)
-    assert "P143 ppm: 0 of 22 steps to solve (22 stored for this head)" in plan
+    exported = Path("results/P143/hrtf/ppm/project/NumCalc").is_dir()  # a clone has not exported it yet
+    stored = "22 stored for this head" if exported else "22 stored, not yet checked against the rebuilt head"
+    assert f"P143 ppm: 0 of 22 steps to solve ({stored})" in plan
     assert "P143 ppm/band_1: 11 of 11 steps to solve (0 stored)" in plan and "P143 ppm/band_2: 7 of 7" in plan
     bad = {**bands, "bands": [{"up_to_hz": 3000.0, "edges_mm": [3.0, 5.0]}]}
     with pytest.raises(RunConfigError, match="2 edge lengths for the 4 distance bands"):

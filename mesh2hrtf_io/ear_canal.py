@@ -39,17 +39,28 @@ def ear_canal_elements(mesh: trimesh.Trimesh, side: str, min_area_mm2: float = 4
                        floor_depth_mm: float = 1.5) -> np.ndarray:
     """Face indices of the ear-canal entrance on ``side`` ('left' or 'right'), at least ``min_area_mm2``:
     the middle of the canal floor the ray exit leads down into, or the exit itself (see the module)."""
+    centre = ear_canal_centre(mesh, side, source, pit_radius_mm, floor_depth_mm)
+    return faces_around(mesh, centre, np.array([0.0, SIDES[side], 0.0]), min_area_mm2)
+
+
+def ear_canal_centre(mesh: trimesh.Trimesh, side: str, source: str = "head mesh", pit_radius_mm: float = 12.0,
+                     floor_depth_mm: float = 1.5, require_floor: bool = False) -> np.ndarray:
+    """The point (mm) the source on ``side`` is centred on: the middle (area-weighted) of the canal floor the ray
+    exit leads down into, or the exit itself where there is no pit (see the module; with ``require_floor`` that
+    is an :class:`EarCanalError`). The head frame of a new listener (:mod:`listener.head_frame`) puts its
+    interaural axis through the two."""
     if side not in SIDES:
         raise EarCanalError(f"side must be 'left' or 'right', got {side!r}")
     direction = np.array([0.0, SIDES[side], 0.0])
     hit, face = _ray_exit(mesh, direction, side, source)
     floor = canal_floor(mesh, hit, face, direction, pit_radius_mm, floor_depth_mm)
     if floor is None:
-        centre = hit
-    else:
-        weights = mesh.area_faces[floor]
-        centre = (mesh.triangles_center[floor] * weights[:, None]).sum(axis=0) / weights.sum()
-    return faces_around(mesh, centre, direction, min_area_mm2)
+        if require_floor:
+            raise EarCanalError(f"{source}: no canal pit within {pit_radius_mm:g} mm of where the {side} ear axis "
+                                "leaves the head")
+        return hit
+    weights = mesh.area_faces[floor]
+    return (mesh.triangles_center[floor] * weights[:, None]).sum(axis=0) / weights.sum()
 
 
 def faces_around(mesh: trimesh.Trimesh, point_mm: np.ndarray, direction: np.ndarray,

@@ -132,13 +132,29 @@ def _result_name(subject: str, head: str, from_hz: float, up_to_hz: float, edges
     return f"{subject}_{head}_{band}_edges_{'-'.join(f'{float(e):g}' for e in edges_mm)}"
 
 
-def _band_names(subject: str, head: str, band_set: str) -> list[str]:
-    names = []
+def _bands(band_set: str) -> list[tuple[float, float, list[str]]]:
+    """The bands of ``band_set`` ("FROM-UPTO:EDGES;...", Hz and mm): (from, up to, edges)."""
+    bands = []
     for band in band_set.split(";"):
         limits, edges = band.split(":")
         low, high = (float(x) for x in limits.split("-"))
-        names.append(_result_name(subject, head, low, high, edges.split(",")))
-    return names
+        bands.append((low, high, edges.split(",")))
+    return bands
+
+
+def _kept_band(subject: str, head: str, low: float, high: float, edges) -> tuple[Path, list[int]]:
+    """The kept result that solved the steps of ``low``-``high`` Hz on the band mesh of ``edges`` (the mesh
+    depends on the edges only, so a wider band's result serves a narrower one) and those steps."""
+    exact = KEPT / f"{_result_name(subject, head, low, high, edges)}.json"
+    suffix = f"_edges_{'-'.join(f'{float(e):g}' for e in edges)}.json"
+    candidates = [exact] + sorted(KEPT.glob(f"{subject}_{head}_*{suffix}"))
+    for path in candidates:
+        if not path.is_file():
+            continue
+        kept = json.loads(path.read_text())
+        if kept["from_hz"] <= low and kept["up_to_hz"] >= high:
+            return path, [row["step"] for row in kept["steps"] if low < row["frequency_hz"] <= high]
+    raise SystemExit(f"{exact} is missing: solve the band {low:.0f}-{high:.0f} Hz with edges {edges} first (see --help)")
 
 
 def _committed_steps(full_dir: Path, subject: str, head: str, steps) -> tuple[list[np.ndarray], list[float]]:
@@ -175,13 +191,13 @@ def judge_heads(heads: list[tuple[str, str]], band_set: str) -> dict:
         n_steps = len(read_project(full_dir).frequencies_hz)
         full, cpu_full = _committed_steps(full_dir, subject, head, range(1, n_steps + 1))
         banded, cpu_banded, p95 = list(full), list(cpu_full), []
-        for name in _band_names(subject, head, band_set):
-            if not (KEPT / f"{name}.npz").is_file():
-                raise SystemExit(f"{KEPT / name}.npz is missing: solve that band first (see --help)")
-            with np.load(KEPT / f"{name}.npz") as band:
+        for low, high, edges in _bands(band_set):
+            path, steps = _kept_band(subject, head, low, high, edges)
+            with np.load(path.with_suffix(".npz")) as band:
                 for step, pressure, seconds in zip(band["steps"], band["pressure"], band["cpu_seconds"]):
-                    banded[int(step) - 1], cpu_banded[int(step) - 1] = pressure, float(seconds)
-            p95.append(json.loads((KEPT / f"{name}.json").read_text())["max_p95_db"])
+                    if int(step) in steps:
+                        banded[int(step) - 1], cpu_banded[int(step) - 1] = pressure, float(seconds)
+            p95.append(round(max(row["p95_db"] for row in json.loads(path.read_text())["steps"] if row["step"] in steps), 3))
         with tempfile.TemporaryDirectory() as tmp:
             sofa_full = collect_pressures(full_dir, full, Path(tmp) / "full")
             sofa_banded = collect_pressures(full_dir, banded, Path(tmp) / "banded")

@@ -11,20 +11,45 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-#: Where the two graded files are joined (mm along y): right of the mid-sagittal plane, left of the right ear.
-SPLICE_Y_MM = -45.0
+from stitching.loops import boundary_loops, bridge_loops
+from stitching.remesh import repair_self_intersections, self_intersections
+
+from .errors import ListenerError
+
+#: The two graded files are cut across y (mm) with a gap between (right of the mid-sagittal plane, left of the
+#: right ear, where both are meshed 2-9 mm), and the gap is bridged by one strip of triangles.
+SPLICE_Y_MM = (-40.0, -52.0)
 
 
-def both_ears_head(subject_dir: str | Path, splice_y_mm: float = SPLICE_Y_MM) -> trimesh.Trimesh:
-    """The faces of ``head_graded_left.ply`` left of ``splice_y_mm`` and of ``head_graded_right.ply`` right of it,
-    as one mesh (mm): both ears as finely resolved as the dataset has them. The two parts meet in an open seam,
-    so this is a surface for finding the head frame and fitting the pinnae, not a closed BEM mesh."""
+def both_ears_head(subject_dir: str | Path, splice_y_mm: tuple[float, float] = SPLICE_Y_MM) -> trimesh.Trimesh:
+    """The faces of ``head_graded_left.ply`` left of ``splice_y_mm[0]`` and of ``head_graded_right.ply`` right of
+    ``splice_y_mm[1]``, joined by a strip across the gap into one closed surface (mm): both ears as finely
+    resolved as the dataset has them, as a scan of a new listener would have them.
+
+    Raises
+    ------
+    ListenerError
+        If the two parts do not each leave one loop at the cut, or the joined surface is not closed.
+    """
     subject_dir = Path(subject_dir)
     left = trimesh.load(subject_dir / "head_graded_left.ply", process=False, force="mesh")
     right = trimesh.load(subject_dir / "head_graded_right.ply", process=False, force="mesh")
-    parts = [trimesh.Trimesh(left.vertices, left.faces[left.triangles_center[:, 1] > splice_y_mm], process=False),
-             trimesh.Trimesh(right.vertices, right.faces[right.triangles_center[:, 1] <= splice_y_mm], process=False)]
+    parts = [trimesh.Trimesh(left.vertices, left.faces[left.triangles_center[:, 1] > splice_y_mm[0]], process=False),
+             trimesh.Trimesh(right.vertices, right.faces[right.triangles_center[:, 1] < splice_y_mm[1]], process=False)]
     for part in parts:
         part.remove_unreferenced_vertices()
-    head = trimesh.util.concatenate(parts)
-    return trimesh.Trimesh(np.asarray(head.vertices), np.asarray(head.faces), process=False)
+    loops = [boundary_loops(part) for part in parts]
+    if any(len(found) != 1 for found in loops):
+        raise ListenerError(f"{subject_dir}: cutting the graded heads at y = {splice_y_mm} mm left "
+                            f"{[len(found) for found in loops]} boundary loops instead of one each")
+    vertices = np.vstack([parts[0].vertices, parts[1].vertices])
+    offset = len(parts[0].vertices)
+    across = vertices * np.array([1.0, 0.0, 1.0])  # rungs measured across the gap's plane
+    strip = bridge_loops(vertices, loops[0][0], loops[1][0] + offset, across)
+    head = trimesh.Trimesh(vertices, np.vstack([parts[0].faces, parts[1].faces + offset, strip]), process=False)
+    if self_intersections(head):
+        head = repair_self_intersections(head)
+    if not (head.is_watertight and head.is_winding_consistent and head.volume > 0):
+        raise ListenerError(f"{subject_dir}: the two graded heads joined at y = {splice_y_mm} mm are not one closed, "
+                            "outward surface")
+    return head

@@ -93,8 +93,9 @@ def find_head_frame(mesh: trimesh.Trimesh, source: str = "head mesh", config: di
     head = trimesh.Trimesh(vertices * scale, np.asarray(mesh.faces), process=False)
     samples = _surface_samples(head, config["concha"]["samples_per_mm2"])
     normal, offset, rms = symmetry_plane(samples, config["symmetry"])
-    pits, depths = concha_pits(samples, normal, offset, config["concha"], source)
-    _check_ear_resolution(head, pits, float(config["concha"]["max_ear_edge_mm"]), source)
+    seeds, depths = concha_pits(samples, normal, offset, config["concha"], source)
+    _check_ear_resolution(head, [side[0] for side in seeds], float(config["concha"]["max_ear_edge_mm"]), source)
+    pits = canal_seeds(head, seeds, normal, offset, source)
     side_a, side_b = canal_entrances(head, pits[0], pits[1], config["canal"], source)
     _check_canals(head, (side_a, side_b), pits, normal, offset, config["canal"], source)
     origin = (side_a + side_b) / 2.0
@@ -172,13 +173,15 @@ def _disk(radius_cells: float) -> np.ndarray:
 
 
 def concha_pits(points: np.ndarray, normal: np.ndarray, offset: float, config: dict,
-                source: str) -> tuple[list[np.ndarray], list[float]]:
-    """The deepest point of each concha (mm; on the +normal side first) and its depth below the closing (mm).
+                source: str) -> tuple[list[list[np.ndarray]], list[float]]:
+    """Where each concha may lead into its canal (mm; the +normal side first): a few points of the concha's deep
+    part (filled by at least ``deep_share`` of the deepest fill), its most medial point first, then the deepest
+    fills at least ``seed_spacing_mm`` apart; and the deepest fill of each side (mm).
 
     Raises
     ------
     ListenerError
-        If a side has no concha as deep as ``min_depth_mm``, or the two are not mirror images of each other.
+        If a side has no concha as deep as ``min_depth_mm``.
     """
     helper = np.array([1.0, 0.0, 0.0]) if abs(normal[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
     a_axis = np.cross(normal, helper)
@@ -190,7 +193,7 @@ def concha_pits(points: np.ndarray, normal: np.ndarray, offset: float, config: d
     ib = np.floor((b - b.min()) / cell).astype(int)
     shape = (ia.max() + 1, ib.max() + 1)
     radius = float(config["closing_radius_mm"]) / cell
-    found, depths, places = [], [], []
+    seeds, depths = [], []
     for side in (1.0, -1.0):
         lateral = side * (points @ normal - offset)
         depth = np.full(shape, -np.inf)
@@ -205,16 +208,21 @@ def concha_pits(points: np.ndarray, normal: np.ndarray, offset: float, config: d
         pit = np.where(valid & (depth >= float(config["min_lateral_mm"])), pit, 0.0)
         i, j = np.unravel_index(int(np.argmax(pit)), pit.shape)
         depths.append(float(pit[i, j]))
-        # the concha's deepest fill may be its cymba or a fossa; the canal is the most medial point of the deep
-        # part of the concha (filled by at least half the deepest fill, connected to it)
-        labels, _ = ndimage.label(pit >= float(config["deep_share"]) * pit[i, j])
-        deep = labels == labels[i, j]
-        i, j = np.unravel_index(int(np.argmin(np.where(deep, depth, np.inf))), pit.shape)
-        place = np.array([a.min() + (i + 0.5) * cell, b.min() + (j + 0.5) * cell])
-        places.append(place)
-        found.append(place[0] * a_axis + place[1] * b_axis + (offset + side * depth[i, j]) * normal)
+        # the deepest fill may be the cymba or a fossa: the canal pit is looked for under several points of the
+        # deep part, the most medial one first
+        deep = pit >= float(config["deep_share"]) * pit[i, j]
+        cells = [np.unravel_index(int(np.argmin(np.where(deep, depth, np.inf))), pit.shape)]
+        spacing = float(config["seed_spacing_mm"]) / cell
+        remaining = np.where(deep, pit, 0.0)
+        grid = np.indices(shape)
+        while len(cells) < int(config["seeds"]) and remaining.max() > 0:
+            k = np.unravel_index(int(np.argmax(remaining)), shape)
+            cells.append(k)
+            remaining[np.hypot(grid[0] - k[0], grid[1] - k[1]) < spacing] = 0.0
+        seeds.append([(a.min() + (k[0] + 0.5) * cell) * a_axis + (b.min() + (k[1] + 0.5) * cell) * b_axis
+                      + (offset + side * depth[k]) * normal for k in cells])
     minimum = float(config["min_depth_mm"])
-    missing = [name for name, d in zip(("one side", "the other side"), depths) if d < minimum]
+    missing = [d for d in depths if d < minimum]
     if len(missing) == 2:
         raise ListenerError(f"{source}: no ears found (the deepest pits on the two sides are {depths[0]:.1f} and "
                             f"{depths[1]:.1f} mm deep, a concha at least {minimum:g} mm): a head scan with both "
@@ -223,12 +231,37 @@ def concha_pits(points: np.ndarray, normal: np.ndarray, offset: float, config: d
         raise ListenerError(f"{source}: only one ear found (the deepest pit on the other side is "
                             f"{min(depths):.1f} mm deep, a concha at least {minimum:g} mm): a head scan with both "
                             "pinnae is needed")
-    apart = float(np.linalg.norm(places[0] - places[1]))
-    if apart > float(config["max_mirror_offset_mm"]):
-        raise ListenerError(f"{source}: the two conchae found are {apart:.0f} mm apart along the head (mirror "
-                            f"images are at most {config['max_mirror_offset_mm']:g} mm): the ears are ambiguous; "
-                            "check the scan near the ears")
-    return found, depths
+    return seeds, depths
+
+
+def canal_seeds(head: trimesh.Trimesh, seeds: list[list[np.ndarray]], normal: np.ndarray, offset: float,
+                source: str) -> list[np.ndarray]:
+    """Per side, the canal floor (mm) under the seed it lies deepest under: from the seed's foot on the
+    mid-sagittal plane a ray along the side's normal leaves the head in the concha and leads down into a
+    pit; the canal is the most medial of these pits.
+
+    Raises
+    ------
+    ListenerError
+        If no seed of a side leads into a pit.
+    """
+    found = []
+    for side, candidates in zip((1.0, -1.0), seeds):
+        floors = []
+        for seed in candidates:
+            foot = seed - (seed @ normal - offset) * normal
+            rotation = _ear_frame(foot, side * normal)
+            local = trimesh.Trimesh((np.asarray(head.vertices) - foot) @ rotation.T, head.faces, process=False)
+            try:
+                floors.append(ear_canal_centre(local, "left", source, require_floor=True) @ rotation + foot)
+            except Mesh2HrtfIoError:
+                continue
+        if not floors:
+            raise ListenerError(f"{source}: no ear canal found in the concha on one side (no canal pit under "
+                                f"{len(candidates)} points of its deepest part); is the canal blocked flat or "
+                                "the ear damaged in the scan?")
+        found.append(min(floors, key=lambda point: abs(point @ normal - offset)))
+    return found
 
 
 def _ear_frame(origin: np.ndarray, axis: np.ndarray) -> np.ndarray:
@@ -288,6 +321,10 @@ def _check_canals(head: trimesh.Trimesh, canals: tuple[np.ndarray, np.ndarray], 
     lateral = abs(depth(canals[0]) - depth(canals[1]))
     if lateral > float(config["max_mirror_mm"]):
         problems.append(f"the two ear canals are {lateral:.1f} mm apart in depth (at most {config['max_mirror_mm']:g})")
+    along = float(np.linalg.norm((canals[0] - (canals[0] @ normal) * normal) - (canals[1] - (canals[1] @ normal) * normal)))
+    if along > float(config["max_mirror_along_mm"]):
+        problems.append(f"the two ear canals are {along:.1f} mm apart along the head (at most "
+                        f"{config['max_mirror_along_mm']:g})")
     if problems:
         near = np.linalg.norm(head.triangles_center - canals[0], axis=1) < 20.0
         edge = float(np.sqrt(np.median(head.area_faces[near]) * 4.0 / np.sqrt(3.0))) if near.any() else np.nan

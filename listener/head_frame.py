@@ -90,7 +90,8 @@ def find_head_frame(mesh: trimesh.Trimesh, source: str = "head mesh", config: di
         raise ListenerError(f"{source}: the head mesh is empty or holds NaN/inf vertices; re-export it")
     unit = infer_unit(vertices, tuple(config["units"]["head_diameter_mm"]), source)
     scale = UNIT_MM[unit]
-    head = trimesh.Trimesh(vertices * scale, np.asarray(mesh.faces), process=False)
+    # merged vertices (an STL repeats them per triangle), so that the canal walk can step between faces
+    head = trimesh.Trimesh(vertices * scale, np.asarray(mesh.faces), process=True)
     samples = _surface_samples(head, config["concha"]["samples_per_mm2"])
     normal, offset, rms = symmetry_plane(samples, config["symmetry"])
     seeds, depths = concha_pits(samples, normal, offset, config["concha"], source)
@@ -402,7 +403,10 @@ def front_and_up(points: np.ndarray, origin: np.ndarray, axis: np.ndarray, confi
     front = np.cos(angle) * basis[0] + np.sin(angle) * basis[1]
     quarter = int(round(90.0 / step))
     dome = _sector_mean(outline, k + quarter, quarter // 2) - _sector_mean(outline, k - quarter, quarter // 2)
-    if not np.isfinite(dome) or abs(dome) < float(config["up_min_contrast_mm"]):
+    if not np.isfinite(dome):
+        raise ListenerError(f"{source}: the head's mid-sagittal outline is missing a right angle from the nose: up "
+                            "is ambiguous; is this a whole head (skull above the ears, neck below)?")
+    if abs(dome) < float(config["up_min_contrast_mm"]):
         raise ListenerError(f"{source}: the head's outline lies as far from the interaural axis on both sides of "
                             f"the nose ({dome:+.1f} mm): up is ambiguous; is this a whole head (skull above the "
                             "ears, neck below)?")

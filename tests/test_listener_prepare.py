@@ -1,0 +1,67 @@
+"""listener.prepare: a head scan as a user has it (STL, centimetres, turned, open at the neck) comes out closed, in
+the project frame, with both pinnae cut out; a scan missing part of the head is refused and nothing is written."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import trimesh
+from scipy.spatial.transform import Rotation
+
+from listener import ListenerError
+from listener.dataset_heads import both_ears_head
+from listener.prepare import OUTPUTS, main, prepare_head
+from mesh2hrtf_io.ear_canal import ear_canal_centre
+
+
+@pytest.fixture(scope="module")
+def p143(sonicom) -> trimesh.Trimesh:
+    return both_ears_head(sonicom / "P143")
+
+
+def _scan(head: trimesh.Trimesh, path, keep=None, unit_mm: float = 10.0) -> None:
+    """``head`` turned and moved, in units of ``unit_mm``, with only the faces ``keep``, written to ``path``."""
+    faces = head.faces if keep is None else head.faces[keep]
+    rotation = Rotation.random(random_state=4).as_matrix()
+    vertices = (np.asarray(head.vertices) @ rotation.T + np.array([120.0, -40.0, 300.0])) / unit_mm
+    trimesh.Trimesh(vertices, faces, process=False).export(path)
+
+
+def test_a_turned_open_stl_in_cm_is_prepared(p143, tmp_path):
+    scan = tmp_path / "scan.stl"
+    _scan(p143, scan, keep=p143.triangles_center[:, 2] > -100.0)  # the neck cut open
+    summary = prepare_head(scan, tmp_path / "prepared")
+    assert summary["unit"] == "cm" and summary["repairs"]
+    head = trimesh.load(tmp_path / "prepared" / "head.ply", process=False)
+    assert head.is_watertight and head.is_winding_consistent and head.volume > 0
+    # the canals the export will place its sources on lie on the y axis, 70-72 mm out
+    for side, sign in (("left", 1.0), ("right", -1.0)):
+        centre = ear_canal_centre(head, side)
+        assert np.abs(centre[[0, 2]]).max() < 1.0
+        assert 69.0 < sign * centre[1] < 73.0
+        crop = trimesh.load(tmp_path / "prepared" / f"pinna_{side}_crop.ply", process=False)
+        assert 6000 < len(crop.vertices) < 15000  # the dataset's crops: 9-12k vertices
+        assert sign * crop.vertices[:, 1].min() > 50.0 or sign * crop.vertices[:, 1].max() < -50.0
+    written = json.loads((tmp_path / "prepared" / "frame.json").read_text())
+    assert written["unit"] == "cm" and len(written["matrix"]) == 4
+
+
+def test_a_scan_missing_part_of_the_head_is_refused_and_nothing_written(p143, tmp_path):
+    scan = tmp_path / "top_missing.ply"
+    _scan(p143, scan, keep=p143.triangles_center[:, 2] < 60.0, unit_mm=1.0)  # the skull above 60 mm cut away
+    with pytest.raises(ListenerError, match="hole .* mm around"):
+        prepare_head(scan, tmp_path / "prepared")
+    assert not any((tmp_path / "prepared" / name).exists() for name in OUTPUTS)
+
+
+def test_inches_and_missing_files_are_refused_by_the_command(p143, tmp_path, capsys):
+    scan = tmp_path / "inches.ply"
+    _scan(p143, scan, unit_mm=25.4)
+    with pytest.raises(SystemExit) as exit_info:
+        main([str(scan), str(tmp_path / "out")])
+    assert exit_info.value.code == 2 and "inches" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main([str(tmp_path / "missing.ply"), str(tmp_path / "out")])
+    assert "no such mesh file" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()

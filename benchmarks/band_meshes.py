@@ -8,7 +8,7 @@ rest is remeshed by distance to the pinna (the dataset's pinna crop) with the ba
 full-mesh steps of the same frequencies: magnitude difference over the 793 directions (median, p95, max dB) and
 NumCalc CPU seconds. Results: benchmarks/results/band_meshes/<subject>_<head>_up_to_<Hz>_edges_<mm>.json.
 
-This measures one band at a time to choose band limits and edge lengths; the workflow does not use band meshes yet.
+This measures one band at a time to choose band limits and edge lengths; the workflow's hrtf.frequency_bands (config/config.yaml) takes the set judged best. A band's steps may come from a wider band's result on the same mesh (the mesh depends on the edges only).
 
 Run: .venv/bin/python benchmarks/band_meshes.py [--subject P143] [--head original] [--from-hz 0] [--up-to-hz 3000]
      [--edges 3,5,8,12] [--numcalc PATH]

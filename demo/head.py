@@ -15,9 +15,8 @@ import trimesh
 from matplotlib.path import Path as PolygonPath
 from scipy.spatial import cKDTree
 
+from stitching.both_ears import mirror_left_right, stitch_left
 from stitching.loops import boundary_loops
-from stitching.replace_pinna import replace_pinna
-from stitching.seam import smooth_seam
 
 
 @dataclasses.dataclass(frozen=True)
@@ -39,11 +38,6 @@ def ellipsoid_head(shape: HeadShape = HeadShape()) -> trimesh.Trimesh:
     sphere = trimesh.creation.icosphere(subdivisions=shape.subdivisions, radius=1.0)
     vertices = sphere.vertices * [shape.front_mm, shape.side_mm, shape.top_mm] + [0.0, 0.0, shape.centre_z_mm]
     return trimesh.Trimesh(vertices, sphere.faces, process=False)
-
-
-def mirror_left_right(mesh: trimesh.Trimesh) -> trimesh.Trimesh:
-    """The mesh mirrored across the median plane (y -> -y), triangles rewound so normals stay outward."""
-    return trimesh.Trimesh(mesh.vertices * [1.0, -1.0, 1.0], mesh.faces[:, ::-1], process=False)
 
 
 def _smoothstep(t: np.ndarray) -> np.ndarray:
@@ -68,17 +62,12 @@ def bend_skin_onto_rim(head: trimesh.Trimesh, rim_mm: np.ndarray, blend_mm: floa
     return trimesh.Trimesh(vertices, head.faces, process=False)
 
 
-def _stitch_left(head: trimesh.Trimesh, pinna: trimesh.Trimesh) -> trimesh.Trimesh:
-    stitched = replace_pinna(head, pinna, head_source="demo head", pinna_source="demo pinna")
-    return smooth_seam(stitched.mesh, stitched.origin == 2)
-
-
 def head_with_pinnae(pinna_left: trimesh.Trimesh, shape: HeadShape = HeadShape()) -> trimesh.Trimesh:
     """The parametric head with ``pinna_left`` (mm, open along the rim of its skin ring) stitched on the
     left and its mirror image on the right: one closed surface with outward normals."""
     rim = np.asarray(pinna_left.vertices)[boundary_loops(pinna_left)[0]]
     head = bend_skin_onto_rim(ellipsoid_head(shape), rim, shape.blend_mm)
     head = mirror_left_right(bend_skin_onto_rim(mirror_left_right(head), rim, shape.blend_mm))
-    with_left = _stitch_left(head, pinna_left)
+    with_left = stitch_left(head, pinna_left, head_source="demo head", pinna_source="demo pinna")
     # mirrored, that pinna sits on the right and the left side is bare skin bent for the same rim
-    return _stitch_left(mirror_left_right(with_left), pinna_left)
+    return stitch_left(mirror_left_right(with_left), pinna_left, head_source="demo head", pinna_source="demo pinna")

@@ -75,7 +75,9 @@ def reference_page(schema_path: Path = SCHEMA, config_path: Path = CONFIG) -> st
              "`key[].item` is a key of every item of a list.", ""]
     top_level = [(key, spec) for key, spec in schema_keys(schema) if "." not in key and "[]" not in key]
     plain = [(key, spec) for key, spec in top_level if not spec.get("properties")]
-    sections = [("General", "The dataset and the subjects of a run.", plain)]
+    general = [row for key, spec in plain
+               for row in [(key, spec)] + [(k, s) for k, s in schema_keys(schema) if k.startswith(f"{key}[].")]]
+    sections = [("General", "The dataset, the subjects and the new listeners of a run.", general)]
     for section, spec in top_level:
         if spec.get("properties"):
             sections.append((f"`{section}`", spec.get("description", ""),

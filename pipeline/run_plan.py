@@ -96,6 +96,13 @@ class RunPlan:
             self.subjects = subjects_of(config, self.data_root)
         self.evaluation_folder = config["evaluation"]["folder"]
         self._check_frequency_bands()
+        from listener.errors import ListenerError  # noqa: PLC0415
+        from listener.table import listeners_of  # noqa: PLC0415
+
+        try:
+            self.listeners = listeners_of(config)
+        except ListenerError as error:
+            raise RunConfigError(str(error)) from error
 
     @property
     def hrtf(self) -> dict:
@@ -471,10 +478,35 @@ class RunPlan:
             inputs["demo"] = str(self.data_root / self.subjects[0] / "demo.json")
         return inputs
 
+    # --- new listeners ---------------------------------------------------------------------------------------
+    def listener_head(self, listener: str) -> str:
+        """The head scan of a listener (config listeners)."""
+        return str(self.listeners[listener])
+
+    def listener_template(self) -> str:
+        """The template pinna both ears of every listener are fitted with."""
+        from listener.errors import ListenerError  # noqa: PLC0415
+        from listener.table import listener_template  # noqa: PLC0415
+
+        try:
+            return listener_template(self.config)
+        except ListenerError as error:
+            raise RunConfigError(str(error)) from error
+
+    def listener_outputs(self) -> list[str]:
+        """What a run with listeners makes for each: the frame found, both fits and the remeshed head with both
+        PPM pinnae."""
+        return [f"results/listeners/{name}/{part}" for name in self.listeners
+                for part in ("prepared/frame.json", "align/left/summary.json", "align/right/summary.json",
+                             "remesh/validation.json")]
+
     def final_output(self) -> list[str]:
-        """Everything `snakemake --cores 2` makes: PPM pictures; per subject (demo or dataset) the alignment, the
-        head with the PPM pinna stitched in and remeshed, and the report; with hrtf.enabled (always in the demo)
-        the HRTFs of the reference and PPM heads and their localisation comparison; the dataset report."""
+        """Everything `snakemake --cores 2` makes: with config listeners, only theirs (listener_outputs);
+        otherwise PPM pictures; per subject (demo or dataset) the alignment, the head with the PPM pinna stitched
+        in and remeshed, and the report; with hrtf.enabled (always in the demo) the HRTFs of the reference and PPM
+        heads and their localisation comparison; the dataset report."""
+        if self.listeners:
+            return self.listener_outputs()
         out = ["results/ppm/default_ppm.png", "results/ppm/range_sheet.png", "results/ppm/default_ppm.blend",
                "results/ppm/default_parameters.csv"]
         out += [f"results/{s}/align/summary.json" for s in self.subjects]

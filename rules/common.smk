@@ -10,7 +10,7 @@ from pipeline.run_plan import (CONTROLS, HRTF_VARIANTS, RunPlan, apply_demo_over
                                configfile_settings)
 
 validate(config, "../config/schema.yaml")
-if not config["data_root"]:
+if not config["data_root"] and not config.get("listeners"):  # a listener run keeps the real bands
     apply_demo_overrides(config)  # the demo's hrtf keys and remeshing bands (checked again)
     validate(config, "../config/schema.yaml")
 
@@ -31,6 +31,8 @@ wildcard_constraints:
     variant="|".join(HRTF_VARIANTS),
     control="|".join(CONTROLS),
     source="[12]",
+    listener="|".join(RUN.listeners) or "no-listener",
+    side="left|right",
     band="[0-9]+",
     first="[0-9]+",
     last="[0-9]+",

@@ -16,6 +16,7 @@ from ppm.atomic import write_text_atomic
 from ppm.mesh_io import write_mesh
 
 from mesh2hrtf_io.ear_canal import ear_canal_elements
+from .both_ears import mirror_left_right, stitch_both_ears
 from .errors import StitchError
 from .remesh import DEFAULT_BANDS, fill_folds, remesh_graded, remove_slivers, repair_self_intersections
 from .replace_pinna import own_pinna_region, replace_pinna
@@ -53,10 +54,21 @@ def own_pinna_files(head_path: str | os.PathLike, pinna_path: str | os.PathLike,
 
 
 def stitch_files(head_path: str | os.PathLike, pinna_path: str | os.PathLike, out_mesh: str | os.PathLike,
-                 out_report: str | os.PathLike, gap_mm: float = 1.5) -> dict:
-    """Replace the head's left pinna by the aligned PPM pinna and smooth the seam."""
+                 out_report: str | os.PathLike, gap_mm: float = 1.5,
+                 right_pinna_path: str | os.PathLike | None = None) -> dict:
+    """Replace the head's left pinna by the aligned PPM pinna and smooth the seam; with ``right_pinna_path`` (the
+    right ear's fit, a left-ear shape as the PPM is) the right pinna too (:mod:`stitching.both_ears`)."""
     start = time.perf_counter()
     head, pinna = _load(head_path, "head"), _load(pinna_path, "pinna")
+    if right_pinna_path is not None:
+        right = _load(right_pinna_path, "right pinna")
+        mesh = stitch_both_ears(head, pinna, right, gap_mm, str(head_path), str(pinna_path), str(right_pinna_path))
+        report = {"head": str(head_path), "pinna": str(pinna_path), "right_pinna": str(right_pinna_path),
+                  "n_triangles": int(len(mesh.faces)), "closed": bool(mesh.is_watertight),
+                  "seconds": round(time.perf_counter() - start, 2)}
+        write_mesh(out_mesh, mesh.vertices, mesh.faces)
+        write_text_atomic(out_report, json.dumps(report, indent=2) + "\n")
+        return report
     stitched = replace_pinna(head, pinna, gap_mm=gap_mm, head_source=str(head_path), pinna_source=str(pinna_path))
     mesh = smooth_seam(stitched.mesh, stitched.origin == 2)
     report = {"head": str(head_path), "pinna": str(pinna_path), "removed_head_faces": stitched.removed_head_faces,
@@ -69,16 +81,25 @@ def stitch_files(head_path: str | os.PathLike, pinna_path: str | os.PathLike, ou
 
 
 def remesh_files(stitched_path: str | os.PathLike, pinna_path: str | os.PathLike, out_mesh: str | os.PathLike,
-                 out_report: str | os.PathLike, bands=DEFAULT_BANDS) -> dict:
-    """Graded remeshing around the pinna, self-intersection and sliver repair, and the validation report."""
+                 out_report: str | os.PathLike, bands=DEFAULT_BANDS,
+                 right_pinna_path: str | os.PathLike | None = None) -> dict:
+    """Graded remeshing around the pinna (both pinnae with ``right_pinna_path``, the right ear's fit as a left-ear
+    shape), self-intersection and sliver repair, and the validation report."""
     start = time.perf_counter()
     stitched, pinna = _load(stitched_path, "stitched head"), _load(pinna_path, "pinna")
+    points = np.asarray(pinna.vertices)
+    right = None if right_pinna_path is None else mirror_left_right(_load(right_pinna_path, "right pinna"))
+    if right is not None:
+        points = np.vstack([points, np.asarray(right.vertices)])
     # a crumple (folded triangles) is cut out before the remeshing and again after it (the remesher may fold a
     # patch it cannot smooth), then slivers go
-    mesh = repair_self_intersections(remesh_graded(fill_folds(stitched), np.asarray(pinna.vertices), bands))
+    mesh = repair_self_intersections(remesh_graded(fill_folds(stitched), points, bands))
     mesh = remove_slivers(fill_folds(mesh))
     mesh = repair_self_intersections(mesh)  # in case the sliver repair made one
     report = validate_head(mesh, pinna)
+    if right is not None:
+        report["right_pinna_edge_mm"] = validate_head(mirror_left_right(mesh),
+                                                      mirror_left_right(right))["pinna_edge_mm"]
     # the reciprocal sources for the exporter: ear-canal entrance faces of the final mesh
     report["ear_elements"] = {side: ear_canal_elements(mesh, side, source=str(out_mesh)).tolist()
                               for side in ("left", "right")}

@@ -1,5 +1,5 @@
-"""Rules align_ppm and place_default_ppm: fit the PPM (leave-one-subject-out template) to a subject's prepared
-left pinna scan, or (params.global_pose_only, the evaluation's default_ppm control) only place the template at
+"""Rules align_ppm, listener_align and place_default_ppm: fit the PPM (leave-one-subject-out template; the packaged
+one for a listener) to a subject's prepared left pinna scan (a listener's left or mirrored right one), or (params.global_pose_only, the evaluation's default_ppm control) only place the template at
 default parameters by the global pose."""
 import sys
 from pathlib import Path
@@ -35,4 +35,5 @@ write_alignment(out_dir, model, target, result, extra={"template": snakemake.inp
                                                        **pose_summary(target)})
 distance = one_sided_distances_mm(target, result.vertices_mm, model.faces)
 render_distance_map(target.points_mm, None, distance, snakemake.output.picture,  # noqa: F821
-                    f"{snakemake.wildcards.subject}: scan -> {'placed default' if global_pose_only else 'aligned'} PPM")  # noqa: F821
+                    f"{snakemake.params.get('title') or snakemake.wildcards.subject}: scan -> "  # noqa: F821
+                    f"{'placed default' if global_pose_only else 'aligned'} PPM")

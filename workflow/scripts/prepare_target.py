@@ -1,4 +1,4 @@
-"""Rule prepare_target: check a subject's left pinna scan (units, side, NaNs) or, with align.scan_pose: any,
+"""Rules prepare_target and listener_target: check a subject's left pinna scan (a listener's left or right one) (units, side, NaNs) or, with align.scan_pose: any,
 find its pose, unit and side; cut the pinna with a ring of skin out of the crop, and report outliers and holes."""
 import sys
 from pathlib import Path
@@ -10,7 +10,7 @@ configure_logging(snakemake)  # noqa: F821
 
 from ppm.align.target import prepare_target, write_target  # noqa: E402
 
-target = prepare_target(snakemake.input.scan, side="left",  # noqa: F821
+target = prepare_target(snakemake.input.scan, side=snakemake.params.get("side", "left"),  # noqa: F821
                         margin_mm=snakemake.params.settings["target_margin_mm"],  # noqa: F821
                         scan_pose=snakemake.params.settings.get("scan_pose", "project_frame"))  # noqa: F821
 write_target(target, snakemake.output.target, snakemake.output.report)  # noqa: F821

@@ -12,4 +12,4 @@ from stitching.remesh import bands_from_config  # noqa: E402
 
 bands = bands_from_config(snakemake.params.bands)  # noqa: F821
 remesh_files(snakemake.input.mesh, snakemake.input.pinna, snakemake.output.mesh, snakemake.output.report,  # noqa: F821
-             bands)
+             bands, right_pinna_path=snakemake.input.get("right_pinna"))  # noqa: F821

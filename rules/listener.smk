@@ -1,0 +1,114 @@
+# A new listener (config listeners): the head scan brought into the project frame and closed, both pinnae cut out
+# and fitted by the PPM (the right one mirrored: the PPM is a left ear), both fits stitched into the head and the
+# head remeshed at both pinnae. Results in results/listeners/<name>/.
+
+
+rule listener_prepare:
+    input:
+        head=lambda wc: RUN.listener_head(wc.listener),
+    output:
+        head="results/listeners/{listener}/prepared/head.ply",
+        left="results/listeners/{listener}/prepared/pinna_left_crop.ply",
+        right="results/listeners/{listener}/prepared/pinna_right_crop.ply",
+        frame="results/listeners/{listener}/prepared/frame.json",
+    log:
+        "logs/listener/prepare/{listener}.log",
+    benchmark:
+        "benchmarks/timings/listener/prepare/{listener}.tsv"
+    threads: 1
+    resources:
+        mem_mb=measured_mem_mb("listener_prepare"),
+        runtime=measured_runtime("listener_prepare"),
+    script:
+        "../workflow/scripts/listener_prepare.py"
+
+
+rule listener_target:
+    input:
+        scan="results/listeners/{listener}/prepared/pinna_{side}_crop.ply",
+    output:
+        target="results/listeners/{listener}/target/{side}/pinna_target.ply",
+        report="results/listeners/{listener}/target/{side}/target.json",
+    log:
+        "logs/listener/target/{listener}_{side}.log",
+    benchmark:
+        "benchmarks/timings/listener/target/{listener}_{side}.tsv"
+    params:
+        settings=lambda wc: {**config["align"], "scan_pose": "project_frame"},
+        side=lambda wc: wc.side,
+    threads: 1
+    resources:
+        mem_mb=measured_mem_mb("prepare_target"),
+        runtime=measured_runtime("prepare_target"),
+    script:
+        "../workflow/scripts/prepare_target.py"
+
+
+rule listener_align:
+    input:
+        target="results/listeners/{listener}/target/{side}/pinna_target.ply",
+        template=lambda wc: RUN.listener_template(),
+    output:
+        parameters_csv="results/listeners/{listener}/align/{side}/parameters.csv",
+        parameters_json="results/listeners/{listener}/align/{side}/parameters.json",
+        aligned="results/listeners/{listener}/align/{side}/aligned_pinna.ply",
+        blend="results/listeners/{listener}/align/{side}/aligned_pinna.blend",
+        distances="results/listeners/{listener}/align/{side}/distances.ply",
+        summary="results/listeners/{listener}/align/{side}/summary.json",
+        picture="results/listeners/{listener}/align/{side}/distance_map.png",
+    log:
+        "logs/listener/align/{listener}_{side}.log",
+    benchmark:
+        "benchmarks/timings/listener/align/{listener}_{side}.tsv"
+    params:
+        title=lambda wc: f"{wc.listener} {wc.side} ear",
+    threads: 1
+    resources:
+        mem_mb=measured_mem_mb("align_ppm"),
+        runtime=measured_runtime("align_ppm"),
+    script:
+        "../workflow/scripts/align_ppm.py"
+
+
+rule listener_stitch:
+    input:
+        head="results/listeners/{listener}/prepared/head.ply",
+        pinna="results/listeners/{listener}/align/left/aligned_pinna.ply",
+        right_pinna="results/listeners/{listener}/align/right/aligned_pinna.ply",
+    output:
+        mesh="results/listeners/{listener}/stitch/stitched_head.ply",
+        report="results/listeners/{listener}/stitch/stitch.json",
+    log:
+        "logs/listener/stitch/{listener}.log",
+    benchmark:
+        "benchmarks/timings/listener/stitch/{listener}.tsv"
+    params:
+        gap_mm=lambda wc: config["stitch"]["gap_mm"],
+    threads: 1
+    resources:
+        mem_mb=measured_mem_mb("stitch"),
+        runtime=measured_runtime("stitch"),
+    script:
+        "../workflow/scripts/stitch_head.py"
+
+
+rule listener_remesh:
+    input:
+        mesh="results/listeners/{listener}/stitch/stitched_head.ply",
+        pinna="results/listeners/{listener}/align/left/aligned_pinna.ply",
+        right_pinna="results/listeners/{listener}/align/right/aligned_pinna.ply",
+    output:
+        mesh="results/listeners/{listener}/remesh/head.ply",
+        report="results/listeners/{listener}/remesh/validation.json",
+    log:
+        "logs/listener/remesh/{listener}.log",
+    benchmark:
+        "benchmarks/timings/listener/remesh/{listener}.tsv"
+    params:
+        bands=lambda wc: config["stitch"]["bands"],
+    threads: 1
+    resources:
+        mem_mb=measured_mem_mb("remesh"),
+        runtime=measured_runtime("remesh"),
+    script:
+        "../workflow/scripts/remesh_head.py"

@@ -1,0 +1,72 @@
+"""A new listener through the workflow, really run: a head scan (CGTUB's head, turned at random and written in cm,
+as a user's scanner might export it) in, the frame found, both ears fitted by the PPM, both fits stitched in and
+the head remeshed at both pinnae; a bad listener table stops the run before any work."""
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+from scipy.spatial.transform import Rotation
+
+from mesh2hrtf_io.ear_canal import ear_canal_centre
+
+ROOT = Path(__file__).resolve().parents[1]
+SNAKEMAKE = [sys.executable, "-m", "snakemake"]
+
+
+def _project(tmp_path: Path) -> Path:
+    work = tmp_path / "project"
+    for folder in ("workflow", "rules", "config"):
+        shutil.copytree(ROOT / folder, work / folder)
+    return work
+
+
+def _run(args: list[str], cwd: Path, timeout: int = 900) -> subprocess.CompletedProcess:
+    return subprocess.run(SNAKEMAKE + args, cwd=cwd, capture_output=True, text=True, timeout=timeout)
+
+
+def test_a_bad_listener_table_stops_the_run(tmp_path):
+    work = _project(tmp_path)
+    done = _run(["-n", "--cores", "1", "--config", "listeners=[{name: me, head: scans/missing.stl}]"], work)
+    assert done.returncode != 0 and "scans/missing.stl is missing or empty" in done.stdout + done.stderr
+    (work / "scans").mkdir()
+    (work / "scans" / "me.txt").write_text("not a mesh")
+    done = _run(["-n", "--cores", "1", "--config", "listeners=[{name: me, head: scans/me.txt}]"], work)
+    assert done.returncode != 0 and "not a mesh file" in done.stdout + done.stderr
+    done = _run(["-n", "--cores", "1", "--config", "listeners=[{name: 'me too', head: scans/me.txt}]"], work)
+    assert done.returncode != 0 and "name" in done.stdout + done.stderr
+    assert not (work / "results").exists()
+
+
+@pytest.mark.slow
+def test_a_listener_s_head_scan_becomes_a_head_with_both_ppm_pinnae(tmp_path, sonicom):
+    work = _project(tmp_path)
+    head = trimesh.load(sonicom.parent / "heads" / "cgtub_head_2mm.ply", process=False, force="mesh")
+    rotation = Rotation.random(random_state=9).as_matrix()
+    (work / "scans").mkdir()
+    trimesh.Trimesh((np.asarray(head.vertices) @ rotation.T + [50.0, 20.0, -80.0]) / 10.0, head.faces,
+                    process=False).export(work / "scans" / "cgtub_cm.stl")
+    done = _run(["--cores", "2", "--config", "listeners=[{name: cgtub, head: scans/cgtub_cm.stl}]"], work)
+    assert done.returncode == 0, done.stderr[-4000:]
+    base = work / "results" / "listeners" / "cgtub"
+    frame = json.loads((base / "prepared" / "frame.json").read_text())
+    assert frame["unit"] == "cm" and not frame["kept_as_given"]
+    for side in ("left", "right"):
+        summary = json.loads((base / "align" / side / "summary.json").read_text())
+        assert summary  # the fit's report exists for both ears
+        assert (base / "align" / side / "aligned_pinna.blend").stat().st_size > 0
+    validation = json.loads((base / "remesh" / "validation.json").read_text())
+    assert validation["ok"]
+    assert validation["pinna_edge_mm"]["median"] < 1.5 and validation["right_pinna_edge_mm"]["median"] < 1.5
+    remeshed = trimesh.load(base / "remesh" / "head.ply", process=False)
+    assert remeshed.is_watertight
+    # both ear canals of the remeshed head lie on the interaural axis the frame put them on (within 3 mm)
+    for side, sign in (("left", 1.0), ("right", -1.0)):
+        centre = ear_canal_centre(remeshed, side)
+        assert np.abs(centre[[0, 2]]).max() < 3.0 and 60.0 < sign * centre[1] < 75.0

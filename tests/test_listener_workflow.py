@@ -4,9 +4,6 @@ the head remeshed at both pinnae; a bad listener table stops the run before any 
 from __future__ import annotations
 
 import json
-import shutil
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -16,19 +13,12 @@ from scipy.spatial.transform import Rotation
 
 from mesh2hrtf_io.ear_canal import ear_canal_centre
 
-ROOT = Path(__file__).resolve().parents[1]
-SNAKEMAKE = [sys.executable, "-m", "snakemake"]
+from snakemake_run import copy_workflow as _project
+from snakemake_run import run_snakemake
 
 
-def _project(tmp_path: Path) -> Path:
-    work = tmp_path / "project"
-    for folder in ("workflow", "rules", "config"):
-        shutil.copytree(ROOT / folder, work / folder)
-    return work
-
-
-def _run(args: list[str], cwd: Path, timeout: int = 900) -> subprocess.CompletedProcess:
-    return subprocess.run(SNAKEMAKE + args, cwd=cwd, capture_output=True, text=True, timeout=timeout)
+def _run(args: list[str], cwd: Path) -> object:
+    return run_snakemake(args, cwd, timeout=900)
 
 
 def test_a_bad_listener_table_stops_the_run(tmp_path):

@@ -1,27 +1,15 @@
 """The Snakemake workflow, really run: config validation, DAG, and the default target on the bundled data."""
 import shutil
 import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 import trimesh
 
-ROOT = Path(__file__).resolve().parents[1]
-SNAKEMAKE = [sys.executable, "-m", "snakemake"]
-
-
-def _copy_workflow(tmp_path: Path) -> Path:
-    """A clean copy of the workflow files (no results), as a user's checkout would be."""
-    work = tmp_path / "project"
-    for folder in ("workflow", "rules", "config"):
-        shutil.copytree(ROOT / folder, work / folder)
-    return work
-
-
-def _run(args: list[str], cwd: Path, timeout: int = 600) -> subprocess.CompletedProcess:
-    return subprocess.run(SNAKEMAKE + args, cwd=cwd, capture_output=True, text=True, timeout=timeout)
+from snakemake_run import SNAKEMAKE
+from snakemake_run import copy_workflow as _copy_workflow
+from snakemake_run import run_snakemake as _run
 
 
 def test_dry_run_with_a_dataset_plans_one_template_per_subject(tmp_path, sonicom):

@@ -105,3 +105,15 @@ def sagittal_grid(name: str = "SagittalPlanes", lateral_angles_deg: tuple[float,
         faces.append(_fan(len(ring), sum(len(r) for r in rings)))
         rings.append(ring)
     return EvaluationGrid(name, np.concatenate(rings), np.concatenate(faces))
+
+
+#: Lateral angles (deg) of the sagittal planes of the full grid: every 10 deg from -80 to 80.
+FULL_GRID_LATERAL_DEG = tuple(float(a) for a in range(-80, 81, 10))
+
+
+def full_grid(polar_step_deg: float = 5.0, radius_m: float = 1.2) -> EvaluationGrid:
+    """Directions all round the head in the interaural-polar frame: sagittal planes every 10 deg of lateral angle
+    (-80 .. 80 deg, which include the -20, 0 and 20 deg planes the localisation model reads), polar angles every
+    ``polar_step_deg`` from -90 to 270 deg on each, at ``radius_m``. A new listener's HRTF set is solved on it."""
+    return sagittal_grid("InterauralPolar", FULL_GRID_LATERAL_DEG, polar_step_deg, radius_m)
+

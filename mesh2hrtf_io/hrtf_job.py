@@ -20,7 +20,7 @@ from ppm.progress import Progress
 from .constants import SPEED_OF_SOUND_M_S
 from .frequency_sets import describe_set, frequencies_from_spec
 from .errors import Mesh2HrtfIoError
-from .grids import grid_from_sofa, sagittal_grid
+from .grids import full_grid, grid_from_sofa, sagittal_grid
 from .project import write_project
 from .project_reader import read_project
 
@@ -59,6 +59,7 @@ def export_head_project(head_path: str | os.PathLike, project: str | os.PathLike
         ears = {side: ear_canal_elements(head, side, source=str(head_path)) for side in sides}
     frequencies = frequencies_from_spec(settings["frequencies_hz"])
     grid = (grid_from_sofa(grid_sofa, name="Directions") if grid_sofa
+            else full_grid(settings["polar_step_deg"]) if settings["grid"] == "full"
             else sagittal_grid(polar_step_deg=settings["polar_step_deg"]))
     layout = write_project(project, head.vertices, head.faces, ears, [grid],
                            frequencies, source_type=SOURCE_TYPES[settings["ears"]], title=title or head_path.parent.name,

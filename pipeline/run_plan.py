@@ -15,8 +15,9 @@ from pathlib import Path
 
 import yaml
 
-#: Every HRTF variant of a subject: the reference listener, the unchanged head and the solved conditions.
-HRTF_VARIANTS = ("reference", "original", "ppm", "own_pinna", "default_ppm")
+#: Every HRTF variant of a subject: the reference listener, the unchanged head and the solved conditions; and a new
+#: listener's one head, "personal" (its subject is "listeners/<name>").
+HRTF_VARIANTS = ("reference", "original", "ppm", "own_pinna", "default_ppm", "personal")
 #: The control conditions (the own pinna put back; the template placed by the global pose only).
 CONTROLS = ("own_pinna", "default_ppm")
 
@@ -171,7 +172,7 @@ class RunPlan:
         kept = stored_head(self.store_of(subject, variant))
         if kept is not None:
             return str(kept)
-        if variant == "ppm":
+        if variant in ("ppm", "personal"):
             return f"results/{subject}/remesh/head.ply"
         return f"results/{subject}/controls/{variant}/head.ply"
 
@@ -195,8 +196,8 @@ class RunPlan:
 
     def grid_inputs(self, subject: str) -> dict:
         """With config hrtf.grid = reference_sofa, ``{"grid_sofa": the subject's reference SOFA}`` (its directions
-        are the project's grid), else nothing."""
-        if self.hrtf["grid"] != "reference_sofa":
+        are the project's grid), else nothing (a new listener has no reference: its grid is always "full")."""
+        if self.hrtf["grid"] != "reference_sofa" or self.is_listener(subject):
             return {}
         given = self.given_reference_sofa(subject)
         if not given.is_file():
@@ -308,9 +309,10 @@ class RunPlan:
 
     def band_head_inputs(self, subject: str, variant: str) -> dict:
         """What a band mesh is made from: the variant's full head (mm) and the subject's left pinna crop (the
-        distances to the pinna)."""
-        return {"head": self.head_mesh_of(subject, variant),
-                "pinna": str(self.data_root / subject / "pinna_left_crop.ply")}
+        distances to the pinna; a new listener's crop from its head)."""
+        crop = (f"results/{subject}/prepared/pinna_left_crop.ply" if self.is_listener(subject)
+                else str(self.data_root / subject / "pinna_left_crop.ply"))
+        return {"head": self.head_mesh_of(subject, variant), "pinna": crop}
 
     def band_export_inputs(self, subject: str, variant: str, band: int) -> dict:
         """The band mesh and its source faces a band project is exported from: those kept in the band's step store
@@ -328,7 +330,10 @@ class RunPlan:
 
     def solved_variants(self, subject: str) -> list[str]:
         """The heads whose HRTFs are solved for a subject: the reference head when the dataset has no reference
-        HRIRs (config localisation.reference_sofa), and every evaluation condition (the PPM head first)."""
+        HRIRs (config localisation.reference_sofa), and every evaluation condition (the PPM head first); for a new
+        listener its personal head."""
+        if self.is_listener(subject):
+            return ["personal"]
         given = self.given_reference_sofa(subject).is_file()
         return ([] if given else ["reference"]) + self.evaluation_conditions(subject)
 
@@ -493,12 +498,31 @@ class RunPlan:
         except ListenerError as error:
             raise RunConfigError(str(error)) from error
 
+    @property
+    def listener_subjects(self) -> list[str]:
+        """The subjects the HRTF rules know new listeners by: ``listeners/<name>``."""
+        return [f"listeners/{name}" for name in self.listeners]
+
+    @staticmethod
+    def is_listener(subject: str) -> bool:
+        return subject.startswith("listeners/")
+
+    @property
+    def solved_subjects(self) -> list[str]:
+        """The subjects whose heads this run solves: the new listeners when there are any, else the subjects."""
+        return self.listener_subjects if self.listeners else self.subjects
+
+    def export_settings(self, subject: str) -> dict:
+        """config hrtf for a subject's export; a new listener's grid is always "full" (sagittal planes all round
+        the head: a personal HRTF set, not only the planes the localisation model reads)."""
+        return {**self.hrtf, "grid": "full"} if self.is_listener(subject) else self.hrtf
+
     def listener_outputs(self) -> list[str]:
         """What a run with listeners makes for each: the frame found, both fits and the remeshed head with both
-        PPM pinnae."""
-        return [f"results/listeners/{name}/{part}" for name in self.listeners
-                for part in ("prepared/frame.json", "align/left/summary.json", "align/right/summary.json",
-                             "remesh/validation.json")]
+        PPM pinnae; with hrtf.enabled, its both-ear HRIRs."""
+        parts = ["prepared/frame.json", "align/left/summary.json", "align/right/summary.json",
+                 "remesh/validation.json"] + (["hrtf/personal/HRIR.sofa"] if self.hrtf["enabled"] else [])
+        return [f"results/listeners/{name}/{part}" for name in self.listeners for part in parts]
 
     def final_output(self) -> list[str]:
         """Everything `snakemake --cores 2` makes: with config listeners, only theirs (listener_outputs);
@@ -529,12 +553,12 @@ class RunPlan:
             from reporting.solve_plan import embedded_plan_text  # noqa: PLC0415
 
             heads = [(subject, variant, self.head_mesh_of(subject, variant))
-                     for subject in self.subjects for variant in self.solved_variants(subject)]
+                     for subject in self.solved_subjects for variant in self.solved_variants(subject)]
             return embedded_plan_text(heads, self.hrtf.get("embedded_device", "auto"), len(self.frequencies()))
         from reporting.solve_plan import plan_rows, plan_text  # noqa: PLC0415
 
         heads, projects, steps = [], {}, {}
-        for subject in self.subjects:
+        for subject in self.solved_subjects:
             for variant in self.solved_variants(subject):
                 heads.append((subject, variant))
                 projects[(subject, variant)] = self.project_of(subject, variant)

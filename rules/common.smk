@@ -27,7 +27,7 @@ check_embedded_backend(config)
 
 
 wildcard_constraints:
-    subject="|".join(SUBJECTS),
+    subject="|".join(SUBJECTS + RUN.listener_subjects),
     variant="|".join(HRTF_VARIANTS),
     control="|".join(CONTROLS),
     source="[12]",

@@ -19,8 +19,8 @@ rule export_project:
     benchmark:
         "benchmarks/timings/hrtf/export_project/{subject}_{variant}.tsv"
     params:
-        settings=lambda wc: config["hrtf"],
-        title=lambda wc: f"{wc.subject}_{wc.variant}",
+        settings=lambda wc: RUN.export_settings(wc.subject),
+        title=lambda wc: f"{wc.subject}_{wc.variant}".replace("/", "_"),
         head_store=lambda wc: store_of(wc.subject, wc.variant) if wc.variant in BUILT_HEADS else None,
     threads: 1
     resources:
@@ -61,8 +61,8 @@ rule export_band_project:
     benchmark:
         "benchmarks/timings/hrtf/export_band_project/{subject}_{variant}_{band}.tsv"
     params:
-        settings=lambda wc: config["hrtf"],
-        title=lambda wc: f"{wc.subject}_{wc.variant}_band_{wc.band}",
+        settings=lambda wc: RUN.export_settings(wc.subject),
+        title=lambda wc: f"{wc.subject}_{wc.variant}_band_{wc.band}".replace("/", "_"),
         head_store=lambda wc: RUN.band_store_of(wc.subject, wc.variant, int(wc.band)),
     threads: 1
     resources:

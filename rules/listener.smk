@@ -1,6 +1,11 @@
 # A new listener (config listeners): the head scan brought into the project frame and closed, both pinnae cut out
 # and fitted by the PPM (the right one mirrored: the PPM is a left ear), both fits stitched into the head and the
-# head remeshed at both pinnae. Results in results/listeners/<name>/.
+# head remeshed at both pinnae. Results in results/listeners/<name>/. Its HRTFs are solved by the rules of
+# rules/hrtf.smk with the subject "listeners/<name>" and the variant "personal" (grid "full", both ears).
+
+# a listener's subject "listeners/<name>" also matches the dataset rules' results/{subject}/stitch and /remesh
+ruleorder: listener_stitch > stitch
+ruleorder: listener_remesh > remesh
 
 
 rule listener_prepare:

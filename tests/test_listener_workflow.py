@@ -60,3 +60,34 @@ def test_a_listener_s_head_scan_becomes_a_head_with_both_ppm_pinnae(tmp_path, so
     for side, sign in (("left", 1.0), ("right", -1.0)):
         centre = ear_canal_centre(remeshed, side)
         assert np.abs(centre[[0, 2]]).max() < 3.0 and 60.0 < sign * centre[1] < 75.0
+
+
+@pytest.mark.slow
+def test_a_listener_gets_a_both_ear_hrir_set_on_the_full_grid(tmp_path, sonicom):
+    """CI-sized (coarse bands, 8 frequencies, the embedded solver): CGTUB's head in cm and turned, through to a
+    SimpleFreeFieldHRIR file with both ears on the full grid; a source on the left is louder at the left ear."""
+    import sofar
+    import yaml
+
+    work = _project(tmp_path)
+    head = trimesh.load(sonicom.parent / "heads" / "cgtub_head_2mm.ply", process=False, force="mesh")
+    rotation = Rotation.random(random_state=3).as_matrix()
+    (work / "scans").mkdir()
+    trimesh.Trimesh((np.asarray(head.vertices) @ rotation.T) / 10.0, head.faces,
+                    process=False).export(work / "scans" / "cgtub.ply")
+    config = yaml.safe_load((work / "config" / "config.yaml").read_text())
+    config["listeners"] = [{"name": "cgtub", "head": "scans/cgtub.ply"}]
+    config["hrtf"].update(enabled=True, solver="embedded", embedded_threads=2, polar_step_deg=10.0,
+                          frequencies_hz={"min": 2500.0, "max": 20000.0, "step": 2500.0})
+    config["stitch"]["bands"] = config["demo"]["bands"]
+    (work / "config" / "listener_ci.yaml").write_text(yaml.safe_dump(config))
+    done = _run(["--cores", "2", "--configfile", "config/listener_ci.yaml"], work)
+    assert done.returncode == 0, done.stderr[-4000:]
+    hrirs = sofar.read_sofa(work / "results/listeners/cgtub/hrtf/personal/HRIR.sofa", verify=False)
+    assert hrirs.GLOBAL_SOFAConventions == "SimpleFreeFieldHRIR"
+    assert hrirs.Data_IR.shape[:2] == (17 * 36, 2)  # 17 sagittal planes, 36 polar angles each; two ears
+    positions, energy = hrirs.SourcePosition, (hrirs.Data_IR ** 2).sum(axis=-1)
+    left = (positions[:, 0] > 60) & (positions[:, 0] < 120) & (np.abs(positions[:, 1]) < 30)
+    right = (positions[:, 0] > 240) & (positions[:, 0] < 300) & (np.abs(positions[:, 1]) < 30)
+    assert 10 * np.log10(energy[left, 0].mean() / energy[left, 1].mean()) > 10.0
+    assert 10 * np.log10(energy[right, 1].mean() / energy[right, 0].mean()) > 10.0

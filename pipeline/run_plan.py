@@ -517,11 +517,24 @@ class RunPlan:
         the head: a personal HRTF set, not only the planes the localisation model reads)."""
         return {**self.hrtf, "grid": "full"} if self.is_listener(subject) else self.hrtf
 
+    def listener_comparisons(self, listener: str) -> dict[str, str]:
+        """The sets a listener's own is compared with in its report: the run's other listeners' HRTFs and config
+        listener.comparison_sets (named by their folder, or file name where folders repeat)."""
+        sets = {name: f"results/listeners/{name}/hrtf/personal/HRTF.sofa" for name in self.listeners if name != listener}
+        for path in (self.config.get("listener") or {}).get("comparison_sets") or []:
+            name = Path(path).parent.name or Path(path).stem
+            sets[name if name not in sets else Path(path).stem] = str(path)
+        missing = [path for path in sets.values() if not path.startswith("results/") and not Path(path).is_file()]
+        if missing:
+            raise RunConfigError(f"config listener.comparison_sets: {missing} not found; give SOFA files of other "
+                                 "people's HRTFs, or none")
+        return sets
+
     def listener_outputs(self) -> list[str]:
         """What a run with listeners makes for each: the frame found, both fits and the remeshed head with both
         PPM pinnae; with hrtf.enabled, its both-ear HRIRs."""
         parts = ["prepared/frame.json", "align/left/summary.json", "align/right/summary.json",
-                 "remesh/validation.json"] + (["hrtf/personal/HRIR.sofa"] if self.hrtf["enabled"] else [])
+                 "remesh/validation.json"] + (["hrtf/personal/HRIR.sofa", "report.html"] if self.hrtf["enabled"] else [])
         return [f"results/listeners/{name}/{part}" for name in self.listeners for part in parts]
 
     def final_output(self) -> list[str]:

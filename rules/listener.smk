@@ -3,9 +3,10 @@
 # head remeshed at both pinnae. Results in results/listeners/<name>/. Its HRTFs are solved by the rules of
 # rules/hrtf.smk with the subject "listeners/<name>" and the variant "personal" (grid "full", both ears).
 
-# a listener's subject "listeners/<name>" also matches the dataset rules' results/{subject}/stitch and /remesh
+# a listener's subject "listeners/<name>" also matches the dataset rules' results/{subject}/stitch, /remesh and report
 ruleorder: listener_stitch > stitch
 ruleorder: listener_remesh > remesh
+ruleorder: listener_report > report_subject
 
 
 rule listener_prepare:
@@ -117,3 +118,28 @@ rule listener_remesh:
         runtime=measured_runtime("remesh"),
     script:
         "../workflow/scripts/remesh_head.py"
+
+
+rule listener_report:
+    input:
+        frame="results/listeners/{listener}/prepared/frame.json",
+        fits=expand("results/listeners/{{listener}}/align/{side}/summary.json", side=["left", "right"]),
+        remesh="results/listeners/{listener}/remesh/validation.json",
+        hrtf="results/listeners/{listener}/hrtf/personal/HRTF.sofa",
+        others=lambda wc: list(RUN.listener_comparisons(wc.listener).values()),
+    output:
+        html="results/listeners/{listener}/report.html",
+        planes="results/listeners/{listener}/hrtf_planes.png",
+        localisation="results/listeners/{listener}/localisation.json",
+    log:
+        "logs/listener/report/{listener}.log",
+    benchmark:
+        "benchmarks/timings/listener/report/{listener}.tsv"
+    params:
+        others=lambda wc: RUN.listener_comparisons(wc.listener),
+    threads: 1
+    resources:
+        mem_mb=measured_mem_mb("localisation"),
+        runtime=measured_runtime("localisation"),
+    script:
+        "../workflow/scripts/listener_report.py"

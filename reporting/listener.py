@@ -1,0 +1,134 @@
+"""A new listener's report: the head frame found, both PPM fits, the HRTFs in three sagittal planes, and what
+personalising buys by baumgartner2014.
+
+Localisation: the listener's own set is the template, with S calibrated so that it heard through itself gives 8 %
+quadrant errors; each other set (other listeners of the run, and the sets of config ``listener.comparison_sets``,
+e.g. SONICOM's) is then a non-individual HRTF heard with that template. The gain of personalising is their QE and
+PE minus the own set's. Other sets are sampled at the listener's solved frequencies (pchip on magnitude and
+unwrapped phase, :func:`amt_bridge.hrtf_set.resampled_at`) and rebuilt, so all sets share rate and length.
+"""
+from __future__ import annotations
+
+import html
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+
+from ppm.atomic import atomic_path, write_text_atomic
+
+#: Lateral angles (deg) of the sagittal planes drawn and read by the model, as in the evaluation.
+LATERAL_ANGLES_DEG = (-20.0, 0.0, 20.0)
+QE_CALIBRATION_PERCENT = 8.0
+
+
+def listener_localisation(own_hrtf: str | os.PathLike, others: dict[str, str | os.PathLike]) -> dict:
+    """QE/PE of the own set (``own_hrtf``: the listener's both-ear HRTF SOFA) as its own template at S for 8 %
+    QE, and of each other set (name -> SOFA, HRIR or HRTF) with the own template at that S."""
+    import sofar  # noqa: PLC0415
+
+    from amt_bridge.hrtf_set import read_hrtf_set, resampled_at  # noqa: PLC0415
+    from amt_bridge.model import LocalisationModel  # noqa: PLC0415
+
+    frequencies = np.asarray(sofar.read_sofa(str(own_hrtf), verify=False).N)
+    own = read_hrtf_set(own_hrtf)
+    model = LocalisationModel(own, own, list(LATERAL_ANGLES_DEG))
+    sensitivity = model.calibrate(QE_CALIBRATION_PERCENT, closest=True)
+    reference = model.predict(sensitivity).as_dict()
+    rows = {"own": {"qe_percent": reference["qe_percent"], "pe_deg": reference["pe_deg"]}}
+    for name, path in others.items():
+        other = resampled_at(read_hrtf_set(path), frequencies)
+        predicted = LocalisationModel(other, own, list(LATERAL_ANGLES_DEG)).predict(sensitivity).as_dict()
+        rows[name] = {"qe_percent": predicted["qe_percent"], "pe_deg": predicted["pe_deg"],
+                      "gain_qe_pp": predicted["qe_percent"] - reference["qe_percent"],
+                      "gain_pe_deg": predicted["pe_deg"] - reference["pe_deg"]}
+    return {"sensitivity_db": sensitivity, "calibration_qe_percent": QE_CALIBRATION_PERCENT, "sets": rows}
+
+
+def plot_planes(hrtf_sofa: str | os.PathLike, out_png: str | os.PathLike, title: str) -> None:
+    """Magnitude (dB) over polar angle and frequency in the sagittal planes at -20, 0 and 20 deg lateral, left
+    and right ear (the directions within 2.5 deg of each plane)."""
+    import matplotlib  # noqa: PLC0415
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt  # noqa: PLC0415
+    import sofar  # noqa: PLC0415
+
+    from amt_bridge.angles import spherical_to_horizontal_polar  # noqa: PLC0415
+
+    sofa = sofar.read_sofa(str(hrtf_sofa), verify=False)
+    spectra = np.asarray(sofa.Data_Real) + 1j * np.asarray(sofa.Data_Imag)
+    frequencies = np.asarray(sofa.N)
+    positions = np.asarray(sofa.SourcePosition)
+    lateral, polar = spherical_to_horizontal_polar(positions[:, 0], positions[:, 1])
+    figure, axes = plt.subplots(2, 3, figsize=(12, 6.5), sharex=True, sharey=True, constrained_layout=True)
+    image = None
+    for column, angle in enumerate(LATERAL_ANGLES_DEG):
+        chosen = np.flatnonzero(np.abs(lateral - angle) < 2.5)
+        order = chosen[np.argsort(polar[chosen])]
+        for row, ear in enumerate(("left", "right")):
+            level = 20 * np.log10(np.maximum(np.abs(spectra[order, row, :]), 1e-12))
+            image = axes[row, column].pcolormesh(frequencies / 1000.0, polar[order], level, shading="nearest",
+                                                 cmap="viridis", vmin=-30, vmax=15)
+            axes[row, column].set_title(f"{ear} ear, lateral {angle:+.0f}°", fontsize=10)
+    for axis in axes[-1]:
+        axis.set_xlabel("frequency (kHz)")
+    for axis in axes[:, 0]:
+        axis.set_ylabel("polar angle (°; 0 front, 90 up)")
+    figure.colorbar(image, ax=axes, label="magnitude (dB re free field at the interaural centre)")
+    figure.suptitle(title)
+    with atomic_path(out_png) as tmp:
+        figure.savefig(tmp, dpi=110, format="png")
+    plt.close(figure)
+
+
+def write_listener_report(name: str, base: str | os.PathLike, localisation: dict, planes_png: str | os.PathLike,
+                          out_html: str | os.PathLike) -> None:
+    """The listener's HTML page (beside ``base``'s results, linked relatively)."""
+    base, out_html = Path(base), Path(out_html)
+    frame = json.loads((base / "prepared" / "frame.json").read_text())
+    fits = {side: json.loads((base / "align" / side / "summary.json").read_text()) for side in ("left", "right")}
+    remesh = json.loads((base / "remesh" / "validation.json").read_text())
+
+    def rel(path: Path) -> str:
+        return html.escape(os.path.relpath(path, out_html.parent))
+
+    def set_row(set_name: str, row: dict) -> str:
+        gains = ("<td></td><td></td>" if set_name == "own"
+                 else f"<td>{row['gain_qe_pp']:+.1f}</td><td>{row['gain_pe_deg']:+.1f}</td>")
+        return (f"<tr><td>{html.escape(set_name)}</td><td>{row['qe_percent']:.1f}</td><td>{row['pe_deg']:.1f}</td>"
+                f"{gains}</tr>")
+
+    rows = "".join(set_row(set_name, row) for set_name, row in localisation["sets"].items())
+    fit_rows = "".join(
+        f"<tr><td>{side}</td><td>{fit['distance_target_to_ppm']['median_mm']:.2f}</td>"
+        f"<td>{fit['distance_target_to_ppm']['p95_mm']:.2f}</td>"
+        f"<td><a href='{rel(base / 'align' / side / 'aligned_pinna.blend')}'>aligned_pinna.blend</a></td></tr>"
+        for side, fit in fits.items())
+    pictures = "".join(f"<figure><img src='{rel(base / 'align' / side / 'distance_map.png')}' width='420'>"
+                       f"<figcaption>{side} ear: scan to fitted PPM (mm)</figcaption></figure>" for side in fits)
+    page = f"""<!doctype html><html><head><meta charset="utf-8"><title>{html.escape(name)}: personal HRTF</title>
+<style>body{{font-family:sans-serif;max-width:1100px;margin:2em auto}}td,th{{padding:2px 10px;text-align:right}}
+figure{{display:inline-block;margin:0 1em 1em 0}}</style></head><body>
+<h1>{html.escape(name)}: personal HRTF</h1>
+<h2>Head frame</h2>
+<p>The scan was in {html.escape(frame['unit'])}{' and already in the project frame' if frame['kept_as_given'] else
+f", turned by {frame['rotation_deg']:.1f}°"}. Ear canals at {frame['left_canal_mm']} and {frame['right_canal_mm']} mm,
+nose tip at {frame['nose_tip_mm']} mm (x front, y left, z up; origin between the canals).
+Repairs: {html.escape('; '.join(frame['repairs']) or 'none')}.</p>
+<h2>Both ears fitted by the PPM</h2>
+<table><tr><th>ear</th><th>median (mm)</th><th>p95 (mm)</th><th>for touch-up</th></tr>{fit_rows}</table>
+{pictures}
+<p>Remeshed head: {remesh['n_triangles']:,} triangles, pinna edges {remesh['pinna_edge_mm']['median']:.2f} mm (left)
+and {remesh.get('right_pinna_edge_mm', {}).get('median', float('nan')):.2f} mm (right), median.</p>
+<h2>HRTFs</h2>
+<img src="{rel(Path(planes_png))}" width="1000">
+<h2>What personalising buys (baumgartner2014)</h2>
+<p>The listener's own set is the template; S = {localisation['sensitivity_db']:.2f} dB gives
+{localisation['calibration_qe_percent']:g} % quadrant errors heard through itself. Each other set stands for a
+non-individual HRTF heard with that template; the gain is its error minus the own set's.</p>
+<table><tr><th>set</th><th>QE (%)</th><th>PE (°)</th><th>ΔQE (pp)</th><th>ΔPE (°)</th></tr>{rows}</table>
+</body></html>
+"""
+    write_text_atomic(out_html, page)

@@ -531,10 +531,10 @@ class RunPlan:
         return sets
 
     def listener_outputs(self) -> list[str]:
-        """What a run with listeners makes for each: the frame found, both fits and the remeshed head with both
-        PPM pinnae; with hrtf.enabled, its both-ear HRIRs."""
+        """What a run with listeners makes for each: the frame found, both fits, the remeshed head with both PPM
+        pinnae, its both-ear HRIRs and its report."""
         parts = ["prepared/frame.json", "align/left/summary.json", "align/right/summary.json",
-                 "remesh/validation.json"] + (["hrtf/personal/HRIR.sofa", "report.html"] if self.hrtf["enabled"] else [])
+                 "remesh/validation.json", "hrtf/personal/HRIR.sofa", "report.html"]
         return [f"results/listeners/{name}/{part}" for name in self.listeners for part in parts]
 
     def final_output(self) -> list[str]:

@@ -13,6 +13,8 @@ validate(config, "../config/schema.yaml")
 if not config["data_root"] and not config.get("listeners"):  # a listener run keeps the real bands
     apply_demo_overrides(config)  # the demo's hrtf keys and remeshing bands (checked again)
     validate(config, "../config/schema.yaml")
+if config.get("listeners"):
+    config["hrtf"]["enabled"] = True  # a new listener's run always ends in its HRTFs (hrtf.enabled is the dataset's)
 
 RUN = RunPlan(config)
 DEMO = RUN.demo

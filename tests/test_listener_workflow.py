@@ -42,7 +42,10 @@ def test_a_listener_s_head_scan_becomes_a_head_with_both_ppm_pinnae(tmp_path, so
     (work / "scans").mkdir()
     trimesh.Trimesh((np.asarray(head.vertices) @ rotation.T + [50.0, 20.0, -80.0]) / 10.0, head.faces,
                     process=False).export(work / "scans" / "cgtub_cm.stl")
-    done = _run(["--cores", "2", "--config", "listeners=[{name: cgtub, head: scans/cgtub_cm.stl}]"], work)
+    targets = [f"results/listeners/cgtub/{part}" for part in ("prepared/frame.json", "align/left/summary.json",
+                                                               "align/right/summary.json", "remesh/validation.json")]
+    done = _run(["--cores", "2", "--config", "listeners=[{name: cgtub, head: scans/cgtub_cm.stl}]", "--", *targets],
+                work)
     assert done.returncode == 0, done.stderr[-4000:]
     base = work / "results" / "listeners" / "cgtub"
     frame = json.loads((base / "prepared" / "frame.json").read_text())

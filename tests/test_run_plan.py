@@ -138,3 +138,32 @@ def test_a_banded_head_solves_each_band_in_its_own_project(in_root, sonicom):
     bad = {**bands, "bands": [{"up_to_hz": 3000.0, "edges_mm": [3.0, 5.0]}]}
     with pytest.raises(RunConfigError, match="2 edge lengths for the 4 distance bands"):
         RunPlan(_config("config/paper_sonicom.yaml", hrtf={"frequency_bands": bad}))
+
+
+def test_a_listener_is_solved_as_its_own_subject_on_the_full_grid(in_root, tmp_path, sonicom):
+    """A run with listeners makes only theirs: each listener's remeshed head is the 'personal' variant of the
+    subject listeners/<name>, solved with both ears on the full grid, compared in its report with the other
+    listeners and the comparison sets; names and files are checked before anything runs."""
+    scan = tmp_path / "head.stl"
+    scan.write_bytes(b"solid x\nendsolid x\n")
+    other = sonicom / "P039" / "hrir_mesh2hrtf_48k.sofa"
+    config = _config(listeners=[{"name": "anna", "head": str(scan)}, {"name": "ben", "head": str(scan)}],
+                     listener={"template": "", "comparison_sets": [str(other)]})
+    run = RunPlan(config)
+    assert run.listener_subjects == ["listeners/anna", "listeners/ben"]
+    assert run.final_output()[-1] == "results/listeners/ben/report.html"
+    assert not any(path.startswith("results/ppm/") for path in run.final_output())
+    assert run.solved_variants("listeners/anna") == ["personal"]
+    assert run.head_mesh_of("listeners/anna", "personal") == "results/listeners/anna/remesh/head.ply"
+    assert run.export_settings("listeners/anna")["grid"] == "full"
+    assert run.grid_inputs("listeners/anna") == {}
+    assert run.listener_comparisons("anna") == {"ben": "results/listeners/ben/hrtf/personal/HRTF.sofa",
+                                                "P039": str(other)}
+    assert run.listener_template().endswith("template_left.ply")
+    with pytest.raises(RunConfigError, match="given twice"):
+        RunPlan(_config(listeners=[{"name": "anna", "head": str(scan)}] * 2))
+    with pytest.raises(RunConfigError, match="missing or empty"):
+        RunPlan(_config(listeners=[{"name": "anna", "head": str(tmp_path / "none.ply")}]))
+    with pytest.raises(RunConfigError, match="listener.template"):
+        RunPlan(_config(listeners=[{"name": "anna", "head": str(scan)}],
+                        listener={"template": str(tmp_path), "comparison_sets": []})).listener_template()

@@ -1,6 +1,8 @@
-"""The listeners of a run (config ``listeners``): each a name and a head scan, checked before anything runs."""
+"""The listeners of a run (config ``listeners``): each a name, a head scan and optionally separate scans of its
+ears, checked before anything runs."""
 from __future__ import annotations
 
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from ppm.mesh_io import MESH_SUFFIXES
@@ -8,25 +10,41 @@ from ppm.mesh_io import MESH_SUFFIXES
 from .errors import ListenerError
 
 
-def listeners_of(config: dict) -> dict[str, Path]:
-    """Name -> head scan path of config ``listeners`` (in the order given).
+@dataclass(frozen=True)
+class Listener:
+    """A new listener: its head scan and, by side ('left'/'right'), separate scans of its ears."""
+
+    name: str
+    head: Path
+    ear_scans: dict[str, Path] = field(default_factory=dict)
+
+
+def _checked(path: str, what: str, name: str) -> Path:
+    path = Path(path)
+    if path.suffix.lower() not in MESH_SUFFIXES:
+        raise ListenerError(f"config listeners ({name}): {path} is not a mesh file; give a PLY, STL or OBJ {what}")
+    if not path.is_file() or path.stat().st_size == 0:
+        raise ListenerError(f"config listeners ({name}): {path} is missing or empty; give the path of the {what} "
+                            "(relative to the folder snakemake runs in)")
+    return path
+
+
+def listeners_of(config: dict) -> dict[str, Listener]:
+    """Name -> :class:`Listener` of config ``listeners`` (in the order given).
 
     Raises
     ------
     ListenerError
-        If a name repeats, or a head scan is missing, empty or not PLY/STL/OBJ.
+        If a name repeats, or a scan is missing, empty or not PLY/STL/OBJ.
     """
-    listeners: dict[str, Path] = {}
+    listeners: dict[str, Listener] = {}
     for entry in config.get("listeners") or []:
-        name, head = entry["name"], Path(entry["head"])
+        name = entry["name"]
         if name in listeners:
             raise ListenerError(f"config listeners: the name {name!r} is given twice; give each listener its own name")
-        if head.suffix.lower() not in MESH_SUFFIXES:
-            raise ListenerError(f"config listeners ({name}): {head} is not a mesh file; give a PLY, STL or OBJ head scan")
-        if not head.is_file() or head.stat().st_size == 0:
-            raise ListenerError(f"config listeners ({name}): {head} is missing or empty; give the path of the head scan "
-                                "(relative to the folder snakemake runs in)")
-        listeners[name] = head
+        ears = {side: _checked(entry[f"{side}_ear"], f"scan of the {side} ear", name)
+                for side in ("left", "right") if entry.get(f"{side}_ear")}
+        listeners[name] = Listener(name, _checked(entry["head"], "head scan", name), ears)
     return listeners
 
 

@@ -486,7 +486,18 @@ class RunPlan:
     # --- new listeners ---------------------------------------------------------------------------------------
     def listener_head(self, listener: str) -> str:
         """The head scan of a listener (config listeners)."""
-        return str(self.listeners[listener])
+        return str(self.listeners[listener].head)
+
+    def listener_ear_scan(self, listener: str, side: str) -> str:
+        """The separate scan of a listener's ear on ``side`` (config listeners: left_ear, right_ear)."""
+        return str(self.listeners[listener].ear_scans[side])
+
+    def listener_target_scan(self, listener: str, side: str) -> str:
+        """What a listener's ear is fitted to: its separate scan registered onto the head where one is given, else
+        the ear cut from the head."""
+        base = f"results/listeners/{listener}/prepared"
+        return (f"{base}/ear_scan_{side}.ply" if side in self.listeners[listener].ear_scans
+                else f"{base}/pinna_{side}_crop.ply")
 
     def listener_template(self) -> str:
         """The template pinna both ears of every listener are fitted with."""

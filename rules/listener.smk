@@ -29,9 +29,28 @@ rule listener_prepare:
         "../workflow/scripts/listener_prepare.py"
 
 
+rule listener_ear_scan:
+    input:
+        scan=lambda wc: RUN.listener_ear_scan(wc.listener, wc.side),
+        crop="results/listeners/{listener}/prepared/pinna_{side}_crop.ply",
+    output:
+        mesh="results/listeners/{listener}/prepared/ear_scan_{side}.ply",
+        report="results/listeners/{listener}/prepared/ear_scan_{side}.json",
+    log:
+        "logs/listener/ear_scan/{listener}_{side}.log",
+    benchmark:
+        "benchmarks/timings/listener/ear_scan/{listener}_{side}.tsv"
+    threads: 1
+    resources:
+        mem_mb=measured_mem_mb("prepare_target"),
+        runtime=measured_runtime("prepare_target"),
+    script:
+        "../workflow/scripts/listener_ear_scan.py"
+
+
 rule listener_target:
     input:
-        scan="results/listeners/{listener}/prepared/pinna_{side}_crop.ply",
+        scan=lambda wc: RUN.listener_target_scan(wc.listener, wc.side),
     output:
         target="results/listeners/{listener}/target/{side}/pinna_target.ply",
         report="results/listeners/{listener}/target/{side}/target.json",

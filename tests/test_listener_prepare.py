@@ -65,3 +65,23 @@ def test_inches_and_missing_files_are_refused_by_the_command(p143, tmp_path, cap
         main([str(tmp_path / "missing.ply"), str(tmp_path / "out")])
     assert "no such mesh file" in capsys.readouterr().err
     assert not (tmp_path / "out").exists()
+
+
+def test_a_separate_ear_scan_registers_onto_the_head_s_ear(p143, sonicom):
+    """P143's left pinna crop, turned at random and in cm, as a separate scan of the left ear: it lands where it is
+    on the head (vertices within 1 mm, median 0.2 mm); another person's ear (P039's) is refused."""
+    from listener.ear_scan import register_ear_scan
+    from listener.ears import pinna_crop
+
+    crop = pinna_crop(p143, "left")
+    scan = trimesh.load(sonicom / "P143" / "pinna_left_crop.ply", process=False)
+    rotation = Rotation.random(random_state=5).as_matrix()
+    posed = trimesh.Trimesh((np.asarray(scan.vertices) @ rotation.T + [40.0, -70.0, 20.0]) / 10.0, scan.faces,
+                            process=False)
+    registered, summary = register_ear_scan(posed, crop, "left")
+    assert summary["unit"] == "cm" and summary["share_within_1mm"] > 0.95
+    error = np.linalg.norm(registered.vertices - scan.vertices, axis=1)
+    assert np.median(error) < 0.2 and error.max() < 1.0
+    other = trimesh.load(sonicom / "P039" / "pinna_left_crop.ply", process=False)
+    with pytest.raises(ListenerError, match="does not register onto the head's left ear"):
+        register_ear_scan(other, crop, "left", "P039's ear")

@@ -1,6 +1,7 @@
 """A new listener through the workflow, really run: a head scan (CGTUB's head, turned at random and written in cm,
-as a user's scanner might export it) in, the frame found, both ears fitted by the PPM, both fits stitched in and
-the head remeshed at both pinnae; a bad listener table stops the run before any work."""
+as a user's scanner might export it) and a separate scan of its left ear in, the frame found, the ear scan
+registered onto the head, both ears fitted by the PPM, both fits stitched in and the head remeshed at both pinnae;
+then, CI-sized, to the both-ear HRIRs and the report; a bad listener table stops the run before any work."""
 from __future__ import annotations
 
 import json
@@ -42,10 +43,17 @@ def test_a_listener_s_head_scan_becomes_a_head_with_both_ppm_pinnae(tmp_path, so
     (work / "scans").mkdir()
     trimesh.Trimesh((np.asarray(head.vertices) @ rotation.T + [50.0, 20.0, -80.0]) / 10.0, head.faces,
                     process=False).export(work / "scans" / "cgtub_cm.stl")
+    # a separate scan of the left ear: the head's own left ear cut out, turned otherwise, in mm
+    from listener.ears import pinna_crop
+
+    ear = pinna_crop(head, "left")
+    turn = Rotation.random(random_state=12).as_matrix()
+    trimesh.Trimesh(np.asarray(ear.vertices) @ turn.T + [5.0, 9.0, -3.0], ear.faces,
+                    process=False).export(work / "scans" / "cgtub_left_ear.ply")
     targets = [f"results/listeners/cgtub/{part}" for part in ("prepared/frame.json", "align/left/summary.json",
                                                                "align/right/summary.json", "remesh/validation.json")]
-    done = _run(["--cores", "2", "--config", "listeners=[{name: cgtub, head: scans/cgtub_cm.stl}]", "--", *targets],
-                work)
+    listeners = "listeners=[{name: cgtub, head: scans/cgtub_cm.stl, left_ear: scans/cgtub_left_ear.ply}]"
+    done = _run(["--cores", "2", "--config", listeners, "--", *targets], work)
     assert done.returncode == 0, done.stderr[-4000:]
     base = work / "results" / "listeners" / "cgtub"
     frame = json.loads((base / "prepared" / "frame.json").read_text())
@@ -54,6 +62,9 @@ def test_a_listener_s_head_scan_becomes_a_head_with_both_ppm_pinnae(tmp_path, so
         summary = json.loads((base / "align" / side / "summary.json").read_text())
         assert summary  # the fit's report exists for both ears
         assert (base / "align" / side / "aligned_pinna.blend").stat().st_size > 0
+    registration = json.loads((base / "prepared" / "ear_scan_left.json").read_text())
+    assert registration["median_mm"] < 0.2 and registration["share_within_1mm"] > 0.95
+    assert json.loads((base / "align" / "left" / "summary.json").read_text())["target"].endswith("pinna_target.ply")
     validation = json.loads((base / "remesh" / "validation.json").read_text())
     assert validation["ok"]
     assert validation["pinna_edge_mm"]["median"] < 1.5 and validation["right_pinna_edge_mm"]["median"] < 1.5

@@ -59,9 +59,9 @@ def test_the_frame_of_a_dataset_head_is_its_interaural_axis(p143_frame):
     assert p143_frame.nose_tip_mm[0] > 100.0
 
 
-@pytest.mark.parametrize("seed, unit", [(1, "cm"), (2, "m"), (3, "mm")])
+@pytest.mark.parametrize("seed, unit", [(1, "cm"), (2, "m")])
 def test_a_head_in_any_pose_and_unit_comes_back(p143, p143_frame, seed, unit):
-    """The same head turned at random, moved by up to 300 mm and written in cm, m or mm: the frame found maps it
+    """The same head turned at random, moved by up to 300 mm and written in cm or m: the frame found maps it
     where the unposed head's frame maps the head (axis within 2 deg, origin within 2 mm, pitch within 2 deg)."""
     scale = {"mm": 1.0, "cm": 10.0, "m": 1000.0}[unit]
     posed, pose = _posed(p143, seed, scale)

@@ -59,7 +59,7 @@ def export_head_project(head_path: str | os.PathLike, project: str | os.PathLike
         ears = {side: ear_canal_elements(head, side, source=str(head_path)) for side in sides}
     frequencies = frequencies_from_spec(settings["frequencies_hz"])
     grid = (grid_from_sofa(grid_sofa, name="Directions") if grid_sofa
-            else full_grid(settings["polar_step_deg"]) if settings["grid"] == "full"
+            else full_grid(settings["polar_step_deg"]) if settings.get("grid") == "full"
             else sagittal_grid(polar_step_deg=settings["polar_step_deg"]))
     layout = write_project(project, head.vertices, head.faces, ears, [grid],
                            frequencies, source_type=SOURCE_TYPES[settings["ears"]], title=title or head_path.parent.name,

@@ -93,6 +93,4 @@ def register_ear_scan(scan: trimesh.Trimesh, crop: trimesh.Trimesh, side: str,
                             "and an ear at all?")
     registered = trimesh.Trimesh(np.asarray(scan_mm.vertices) @ matrix[:3, :3].T + matrix[:3, 3], scan.faces,
                                  process=False)
-    if np.linalg.det(matrix[:3, :3]) < 0:  # never a mirror: the side is the one given
-        raise ListenerError(f"{source}: the registration mirrored the scan; give the {side} ear's scan")
     return registered, {"unit": unit, "median_mm": round(median, 3), "share_within_1mm": round(near, 3), "side": side}

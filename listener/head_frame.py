@@ -295,12 +295,17 @@ def canal_entrances(head: trimesh.Trimesh, pit_a: np.ndarray, pit_b: np.ndarray,
     return a, b
 
 
+def _ear_edge_mm(head: trimesh.Trimesh, point: np.ndarray) -> float:
+    """The median edge (mm, from the faces' areas as if equilateral) within 20 mm of ``point``; inf if none."""
+    near = np.linalg.norm(head.triangles_center - point, axis=1) < 20.0
+    return float(np.sqrt(np.median(head.area_faces[near]) * 4.0 / np.sqrt(3.0))) if near.any() else np.inf
+
+
 def _check_ear_resolution(head: trimesh.Trimesh, pits: list[np.ndarray], max_edge_mm: float, source: str) -> None:
     """Refuse a scan whose ears are meshed coarser than ``max_edge_mm`` (the median edge within 20 mm of each
     concha): neither the canal nor the pinna's shape can be found on it."""
     for pit in pits:
-        near = np.linalg.norm(head.triangles_center - pit, axis=1) < 20.0
-        edge = float(np.sqrt(np.median(head.area_faces[near]) * 4.0 / np.sqrt(3.0))) if near.any() else np.inf
+        edge = _ear_edge_mm(head, pit)
         if edge > max_edge_mm:
             raise ListenerError(f"{source}: the ear at {np.round(pit, 1).tolist()} is meshed with {edge:.1f} mm edges; "
                                 f"a pinna needs at most {max_edge_mm:g} mm (scan or export the head finer at the ears)")
@@ -327,10 +332,8 @@ def _check_canals(head: trimesh.Trimesh, canals: tuple[np.ndarray, np.ndarray], 
         problems.append(f"the two ear canals are {along:.1f} mm apart along the head (at most "
                         f"{config['max_mirror_along_mm']:g})")
     if problems:
-        near = np.linalg.norm(head.triangles_center - canals[0], axis=1) < 20.0
-        edge = float(np.sqrt(np.median(head.area_faces[near]) * 4.0 / np.sqrt(3.0))) if near.any() else np.nan
         raise ListenerError(f"{source}: " + "; ".join(problems) + f": the ears are not resolved well enough (edges "
-                            f"about {edge:.1f} mm at the ear; a scan needs 1-2 mm there)")
+                            f"about {_ear_edge_mm(head, canals[0]):.1f} mm at the ear; a scan needs 1-2 mm there)")
 
 
 def sagittal_profile(points: np.ndarray, origin: np.ndarray, axis: np.ndarray, config: dict,
@@ -410,10 +413,8 @@ def front_and_up(points: np.ndarray, origin: np.ndarray, axis: np.ndarray, confi
         raise ListenerError(f"{source}: the head's outline lies as far from the interaural axis on both sides of "
                             f"the nose ({dome:+.1f} mm): up is ambiguous; is this a whole head (skull above the "
                             "ears, neck below)?")
-    side = np.cross(axis, front)
     side_at = -np.sin(angle) * basis[0] + np.cos(angle) * basis[1]
     up = side_at if dome > 0 else -side_at
-    assert abs(abs(side @ up) - 1.0) < 1e-6
     return front, up, tips[k]
 
 

@@ -8,6 +8,7 @@ ppm/data/scan_defects.yaml). Each scan is fitted
   * by NRICP (trimesh's Amberg, the same template, rigid ICP first) onto the same prepared scan, with the
     stiffness schedule that is best for these scans: every schedule of SCHEDULES is tried at the hardest
     level and the one with the smallest truth distance (mean of median and p95 over subjects) is used;
+  * by the PPM plus its personal-detail layer (ppm.align.detail, packaged settings) on the same prepared scan;
   * at the hardest level, by the PPM again from --poses random poses of the same scan (uniform rotation,
     offset up to 300 mm, unit mm / cm / m, every second one mirrored into a right ear), through the
     workflow's own path (`prepare_target(..., scan_pose="any")`, a PLY file on disk).
@@ -38,12 +39,13 @@ from ppm.align import AlignSettings, align, prepare_target
 from ppm.align.any_pose import PoseUncertainError
 from ppm.align.pose_by_fit import align_any_pose
 from ppm.align.defects import defective_scan, levels, random_pose
+from ppm.align.detail import personal_detail
 from ppm.align.pose import apply_similarity
 from ppm.align.report import one_sided_distances_mm, reverse_distances_mm
-from ppm.align.target import Target, remove_outliers
+from ppm.align.nricp import nricp_fit as fit_nricp
+from ppm.align.target import Target, surface_without_outliers
 from ppm.model import PinnaModel
-from ppm.template.register import NRICP_STEPS, nonrigid_register, rigid_align
-from ppm.template.segment import crop_to_region
+from ppm.template.register import NRICP_STEPS
 
 ROOT = Path(__file__).resolve().parents[1]
 #: NRICP stiffness schedules tried (stiff to supple): ending after 1 ... 4 of NRICP_STEPS' stages, and a
@@ -64,17 +66,10 @@ def truth_distances(truth: Target, vertices_mm: np.ndarray, faces: np.ndarray) -
             "fit_to_truth_p95_mm": float(np.percentile(backward[counts], 95))}
 
 
-def scan_surface_without_outliers(target: Target) -> trimesh.Trimesh:
-    """The prepared scan's surface without the faces of the outlier vertices the PPM fit ignores too."""
-    return crop_to_region(target.mesh, remove_outliers(target.mesh.vertices))
-
-
 def nricp_fit(template: trimesh.Trimesh, scan: trimesh.Trimesh, steps) -> tuple[np.ndarray, float]:
-    """Rigid ICP, then non-rigid ICP with `steps`: fitted vertices (mm) and seconds."""
+    """Rigid ICP, then non-rigid ICP with `steps` (ppm.align.nricp): fitted vertices (mm) and seconds."""
     start = time.perf_counter()
-    matrix = rigid_align(template.vertices, scan)
-    moved = trimesh.Trimesh(trimesh.transform_points(template.vertices, matrix), template.faces, process=False)
-    return nonrigid_register(moved, scan, steps), time.perf_counter() - start
+    return fit_nricp(template, scan, steps), time.perf_counter() - start
 
 
 def fit_file(model: PinnaModel, mesh: trimesh.Trimesh, folder: Path, name: str, scan_pose: str,
@@ -119,7 +114,7 @@ def main() -> None:
     rows: dict[str, dict[str, dict]] = {}
     keep: dict[str, tuple[trimesh.Trimesh, Target]] = {}  # per subject: LOO template, clean truth
     nricp_by_schedule: dict[str, list[dict]] = {name: [] for name in schedules}
-    pose_results, fit_seconds, nricp_seconds = [], [], []
+    pose_results, fit_seconds, nricp_seconds, detail_seconds = [], [], [], []
     work = Path(tempfile.mkdtemp(prefix="align_defects_"))
     for subject in subjects:
         crop = args.data_root / subject / "pinna_left_crop.ply"
@@ -134,19 +129,24 @@ def main() -> None:
             target, result, seconds = fit_file(model, scan.mesh, work, f"{subject}_{level}", "project_frame",
                                                settings)
             ppm = truth_distances(truth, result.vertices_mm, model.faces)
-            surface = scan_surface_without_outliers(target)
+            start = time.perf_counter()
+            layer = personal_detail(result.vertices_mm, model.faces, target)
+            detail = truth_distances(truth, result.vertices_mm + layer.displacement_mm, model.faces)
+            detail_seconds.append(time.perf_counter() - start)
+            surface = surface_without_outliers(target)
             tried = schedules if level == hardest else {}
             for name, steps in tried.items():
                 vertices, nricp_time = nricp_fit(template, surface, steps)
                 nricp_by_schedule[name].append(truth_distances(truth, vertices, model.faces))
                 nricp_seconds.append(nricp_time)
-            rows[subject][level] = {"ppm": ppm, "scan_points": int(len(target.points_mm)),
+            rows[subject][level] = {"ppm": ppm, "ppm_detail": detail, "layer": layer.summary(), "scan_points": int(len(target.points_mm)),
                                     "kept_share": round(scan.kept_share, 3), "fit_seconds": round(seconds, 1),
                                     "_surface": surface}
             print(f"{subject} {level}: scan {len(target.points_mm)} points ({100 * scan.kept_share:.0f} % of the "
                   f"area seen); PPM to truth median {ppm['median_mm']:.3f} p95 {ppm['p95_mm']:.3f} mm "
                   f"(truth->fit {ppm['truth_to_fit_median_mm']:.3f}/{ppm['truth_to_fit_p95_mm']:.3f}, fit->truth "
-                  f"{ppm['fit_to_truth_median_mm']:.3f}/{ppm['fit_to_truth_p95_mm']:.3f}), {seconds:.1f} s", flush=True)
+                  f"{ppm['fit_to_truth_median_mm']:.3f}/{ppm['fit_to_truth_p95_mm']:.3f}), {seconds:.1f} s; with the personal "
+                  f"detail {detail['median_mm']:.3f} / {detail['p95_mm']:.3f} mm", flush=True)
             if level != hardest:
                 continue
             for index in range(args.poses):
@@ -203,24 +203,38 @@ def main() -> None:
                 nricp = truth_distances(truth, vertices, template.faces)
             row["nricp"] = nricp
             del row["_surface"]
+            detail = row["ppm_detail"]
+            row["detail_beats_both"] = bool(
+                detail["median_mm"] <= min(row["ppm"]["median_mm"], nricp["median_mm"])
+                and detail["p95_mm"] <= min(row["ppm"]["p95_mm"], nricp["p95_mm"]))
             print(f"{subject} {level}: truth median / p95 (mm): PPM {row['ppm']['median_mm']:.3f} / "
-                  f"{row['ppm']['p95_mm']:.3f}, NRICP {nricp['median_mm']:.3f} / {nricp['p95_mm']:.3f}")
+                  f"{row['ppm']['p95_mm']:.3f}, NRICP {nricp['median_mm']:.3f} / {nricp['p95_mm']:.3f}, PPM + personal "
+                  f"detail {detail['median_mm']:.3f} / {detail['p95_mm']:.3f} "
+                  f"({'beats both' if row['detail_beats_both'] else 'does NOT beat both'})")
 
     worst_ppm = max(subjects, key=lambda s: rows[s][hardest]["ppm"]["median_mm"])
     worst_nricp = max(subjects, key=lambda s: rows[s][hardest]["nricp"]["median_mm"])
+    worst_detail = max(subjects, key=lambda s: rows[s][hardest]["ppm_detail"]["median_mm"])
+    beats = [rows[s][lv]["detail_beats_both"] for s in subjects for lv in grades]
     successes = [r["success"] for r in pose_results]
     print(json.dumps({
         "ppm_truth_median_mm": round(rows[worst_ppm][hardest]["ppm"]["median_mm"], 4),
         "ppm_truth_p95_mm": round(max(rows[s][hardest]["ppm"]["p95_mm"] for s in subjects), 4),
         "nricp_truth_median_mm": round(rows[worst_nricp][hardest]["nricp"]["median_mm"], 4),
         "nricp_truth_p95_mm": round(max(rows[s][hardest]["nricp"]["p95_mm"] for s in subjects), 4),
+        "detail_truth_median_mm": round(rows[worst_detail][hardest]["ppm_detail"]["median_mm"], 4),
+        "detail_truth_p95_mm": round(max(rows[s][hardest]["ppm_detail"]["p95_mm"] for s in subjects), 4),
+        "detail_beats_both": round(float(np.mean(beats)), 4),
+        "detail_seconds_per_fit": round(float(np.mean(detail_seconds)), 1),
         "pose_success_rate": round(float(np.mean(successes)), 4) if successes else None,
         "levels": grades, "subjects": subjects,
         "seconds_per_fit": round(float(np.mean(fit_seconds)), 1) if fit_seconds else None,
         "nricp_schedule": best, "nricp_seconds_per_fit": round(float(np.mean(nricp_seconds)), 1),
         "poses": pose_results,
         "per_subject": {s: {lv: {"ppm": {k: round(v, 4) for k, v in rows[s][lv]["ppm"].items()},
-                                 "nricp": {k: round(v, 4) for k, v in rows[s][lv]["nricp"].items()}}
+                                 "nricp": {k: round(v, 4) for k, v in rows[s][lv]["nricp"].items()},
+                                 "ppm_detail": {k: round(v, 4) for k, v in rows[s][lv]["ppm_detail"].items()},
+                                 "layer": rows[s][lv]["layer"], "detail_beats_both": rows[s][lv]["detail_beats_both"]}
                             for lv in grades} for s in subjects},
     }))
 

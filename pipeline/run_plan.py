@@ -17,9 +17,10 @@ import yaml
 
 #: Every HRTF variant of a subject: the reference listener, the unchanged head and the solved conditions; and a new
 #: listener's one head, "personal" (its subject is "listeners/<name>").
-HRTF_VARIANTS = ("reference", "original", "ppm", "own_pinna", "default_ppm", "personal")
+HRTF_VARIANTS = ("reference", "original", "ppm", "own_pinna", "default_ppm", "ppm_detail", "ppm_hard", "ppm_detail_hard",
+                 "nricp_hard", "personal")
 #: The control conditions (the own pinna put back; the template placed by the global pose only).
-CONTROLS = ("own_pinna", "default_ppm")
+CONTROLS = ("own_pinna", "default_ppm", "ppm_detail", "ppm_hard", "ppm_detail_hard", "nricp_hard")
 
 
 class RunConfigError(ValueError):
@@ -125,22 +126,35 @@ class RunPlan:
 
     def evaluation_conditions(self, subject: str) -> list[str]:
         """The solved conditions of a subject's evaluation (config evaluation.conditions); a control only for the
-        subjects of evaluation.<control>_subjects (original_subjects, own_pinna_subjects, default_ppm_subjects),
-        all when that list is empty."""
+        subjects of evaluation.<control>_subjects (original_subjects, own_pinna_subjects, default_ppm_subjects,
+        ppm_detail_subjects; hard_subjects for the three *_hard conditions), all when that list is empty."""
         evaluation = self.config["evaluation"]
 
         def chosen(condition: str) -> bool:
-            subjects = evaluation.get(f"{condition}_subjects") or []  # ppm has no such list: always
+            key = "hard_subjects" if condition.endswith("_hard") else f"{condition}_subjects"
+            subjects = evaluation.get(key) or []  # ppm has no such list: always
             return not subjects or subject in subjects
 
         return [c for c in evaluation["conditions"] if chosen(c)]
 
     @staticmethod
+    def detail_target(subject: str, detailed: str) -> str:
+        """The prepared scan a personal-detail layer is drawn towards: the clean crop's (ppm_detail) or the fixed
+        defective scan's (ppm_detail_hard)."""
+        if detailed == "ppm_detail_hard":
+            return f"results/{subject}/controls/hard/target/pinna_target.ply"
+        return f"results/{subject}/target/pinna_target.ply"
+
+    @staticmethod
     def control_pinna(subject: str, control: str) -> str:
-        """The pinna a control condition stitches onto the head (mm): the head's own pinna region (own_pinna) or
-        the template placed by the global pose only (default_ppm)."""
+        """The pinna a control condition stitches onto the head (mm): the head's own pinna region (own_pinna),
+        the PPM fit with its personal-detail layer (ppm_detail), the same three from the subject's fixed defective
+        scan (ppm_hard, ppm_detail_hard, nricp_hard: the template deformed by free-form NRICP) or the template
+        placed by the global pose only (default_ppm)."""
         if control == "own_pinna":
             return f"results/{subject}/controls/own_pinna/pinna.ply"
+        if control in ("ppm_detail", "ppm_hard", "ppm_detail_hard", "nricp_hard"):
+            return f"results/{subject}/controls/{control}/align/aligned_pinna.ply"
         return f"results/{subject}/controls/default_ppm/align/aligned_pinna.ply"
 
     # --- heads, projects, solves ---------------------------------------------------------------------------
@@ -453,11 +467,14 @@ class RunPlan:
         inputs = {}
         for subject in self.subjects:
             inputs[f"{subject}_localisation"] = f"results/{subject}/localisation/qe_pe.json"
+            inputs[f"{subject}_reference"] = self.reference_sofa(subject)  # the paper's protocol completes ears with it
             inputs[f"{subject}_target"] = f"results/{subject}/target/pinna_target.ply"
             # the regions of the scan (where the geometry differs): the template's landmarks on the aligned PPM,
             # those of the fit that made the kept PPM head where the store keeps them (then no template or
             # alignment needed)
             inputs.update(self.fit_landmark_inputs(subject))
+            if any(c.endswith("_hard") for c in self.evaluation_conditions(subject)):
+                inputs[f"{subject}_hard_scan"] = f"results/{subject}/controls/hard/scan.ply"  # kept with the results
             for condition in self.evaluation_conditions(subject):
                 inputs[f"{subject}_{condition}_distances"] = f"results/{subject}/evaluation/{condition}/distances.json"
                 inputs[f"{subject}_{condition}_hrtf"] = f"results/{subject}/hrtf/{condition}/HRTF.sofa"

@@ -33,6 +33,10 @@ from .template.store import Template, load_template
 
 log = logging.getLogger(__name__)
 
+#: The shape key that holds a fit's personal-detail layer (ppm.align.detail): weight 0 is the PPM alone, 1 the PPM
+#: with the detail. It is not one of the 144 parameters, so a person can still edit the PPM and dial the detail.
+DETAIL_KEY = "Personal_detail"
+
 
 class PinnaModel:
     """The rigged template pinna in Blender.
@@ -54,7 +58,13 @@ class PinnaModel:
         self._bind_parameters()
         self._current: PinnaParameters | None = None
         self.set_parameters(PinnaParameters.default())
+        detail = self._detail_key()
+        weight = detail.value if detail is not None else 0.0
+        if detail is not None:
+            detail.value = 0.0
         self._rest_blender = self._read_evaluated()
+        if detail is not None:
+            detail.value = weight
 
     # -------------------------------------------------------------------------------- build
     @classmethod
@@ -167,6 +177,58 @@ class PinnaModel:
         tri = self.template_vertices_mm[self.faces]
         normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
         return normals / np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-12)
+
+    # ------------------------------------------------------------------------ personal detail
+    def _detail_key(self):
+        return self._mesh_object.data.shape_keys.key_blocks.get(DETAIL_KEY)
+
+    @property
+    def detail_weight(self) -> float:
+        """The weight of the personal-detail shape key (0 where the model has none)."""
+        key = self._detail_key()
+        return float(key.value) if key is not None else 0.0
+
+    def set_detail_weight(self, weight: float) -> None:
+        """Dial the personal-detail layer in (1) or out (0)."""
+        key = self._detail_key()
+        if key is None:
+            raise PpmError(f"this PPM has no {DETAIL_KEY!r} shape key; add one with set_personal_detail")
+        key.value = float(np.clip(weight, 0.0, 1.0))
+
+    def set_personal_detail(self, displacement_mm: np.ndarray, weight: float = 1.0) -> float:
+        """Hold ``displacement_mm`` ((n, 3), mm, project frame: the detail of the pose now set) in the shape key
+        :data:`DETAIL_KEY` at ``weight``. Shape keys act before the bones, so the offsets are taken back through
+        each vertex's local bone deformation (its 3x3 Jacobian, measured by moving every vertex 1 mm along each
+        axis) and refined until the posed result matches; returns the largest mismatch left (mm)."""
+        displacement_mm = np.asarray(displacement_mm, dtype=np.float64)
+        if displacement_mm.shape != (self._n, 3) or not np.isfinite(displacement_mm).all():
+            raise PpmError(f"personal detail: expected finite ({self._n}, 3) displacements in mm, "
+                           f"got {displacement_mm.shape}")
+        key = self._detail_key() or self._mesh_object.shape_key_add(name=DETAIL_KEY, from_mix=False)
+        key.slider_min, key.slider_max = 0.0, 1.0
+        basis = np.empty(self._n * 3, np.float32)
+        self._mesh_object.data.shape_keys.key_blocks["Basis"].data.foreach_get("co", basis)
+        basis = basis.reshape(-1, 3).astype(np.float64)
+        key.value = 1.0
+
+        def moved_by(offset: np.ndarray) -> np.ndarray:
+            key.data.foreach_set("co", (basis + offset).astype(np.float32).ravel())
+            return self._read_evaluated()
+
+        zero = np.zeros_like(basis)
+        start = moved_by(zero)
+        jacobian = np.empty((self._n, 3, 3))
+        for axis in range(3):
+            step = zero.copy()
+            step[:, axis] = 1.0
+            jacobian[:, :, axis] = moved_by(step) - start
+        offset = np.linalg.solve(jacobian, displacement_mm[..., None])[..., 0]
+        for _ in range(3):
+            miss = displacement_mm - (moved_by(offset) - start)
+            offset += np.linalg.solve(jacobian, miss[..., None])[..., 0]
+        mismatch = float(np.abs(displacement_mm - (moved_by(offset) - start)).max())
+        key.value = float(np.clip(weight, 0.0, 1.0))
+        return mismatch
 
     def mesh(self, params: PinnaParameters | None = None) -> trimesh.Trimesh:
         """The deformed pinna as a trimesh (mm, project frame, template vertex order)."""

@@ -88,7 +88,8 @@ def solve_costs(results: str | os.PathLike, timings: list[StageTiming]) -> list[
     embedded = json.loads(embedded_path.read_text()).get("projects", {}) if embedded_path.is_file() else {}
     embedded_rss = [t.max_rss_mb for t in timings if t.rule == "solve_embedded" and t.max_rss_mb is not None]
     rows = []
-    for variant in ("reference", "original", "ppm", "own_pinna", "default_ppm"):
+    for variant in ("reference", "original", "ppm", "own_pinna", "default_ppm", "ppm_detail", "ppm_hard", "ppm_detail_hard",
+                    "nricp_hard"):
         project = Path(results) / "hrtf" / variant / "project"
         if not project.is_dir():
             continue

@@ -22,17 +22,20 @@ import numpy as np
 
 from ppm.atomic import atomic_path, write_text_atomic
 
-#: Columns of summary.csv, in order (the issue's, then provenance).
+#: Columns of summary.csv, in order (the issue's, the paper's protocol (reporting.paper_protocol.PAPER_COLUMNS), then
+#: provenance).
 COLUMNS = ("subject", "condition", "qe_percent", "pe_deg", "eb_deg", "sensitivity_db", "delta_qe_pp", "delta_pe_deg",
            "delta_qe_vs_original_pp", "delta_pe_vs_original_deg", "distance_median_mm", "distance_p95_mm",
-           "reverse_median_mm", "reverse_p95_mm", "n_frequencies", "solve_cpu_hours", "n_elements", "steps_solved_here", "steps_restored", "head_sha256", "solver")
+           "reverse_median_mm", "reverse_p95_mm", "qe_paper_percent", "pe_paper_deg", "delta_qe_paper_pp",
+           "delta_pe_paper_deg", "n_frequencies", "solve_cpu_hours", "n_elements", "steps_solved_here", "steps_restored", "head_sha256", "solver")
 
 #: The evaluation's goals: |ΔQE| (pp) and |ΔPE| (deg) against the reference, per condition (and, where the
 #: subject has the condition "original", against this pipeline's own solve of the unchanged head).
-GOALS = {"ppm": (2.0, 2.0), "own_pinna": (1.0, 1.0)}
+GOALS = {"ppm": (2.0, 2.0), "own_pinna": (1.0, 1.0), "ppm_detail": (1.0, 1.0)}
 
 CONDITION_LABELS = {"reference": "reference (dataset HRIRs, rebuilt at the set)", "ppm": "PPM (aligned, LOO template)",
                     "own_pinna": "own pinna (stitch + remesh control)", "default_ppm": "default PPM (global pose only)",
+                    "ppm_detail": "PPM with its personal-detail layer",
                     "original": "original head (the reference head solved here)"}
 
 
@@ -290,7 +293,9 @@ def read_summary_csv(path: str | os.PathLike) -> list[dict]:
 
 
 def figure7(rows: list[dict], path: str | os.PathLike) -> Path:
-    """QE (%) and PE (deg) per subject and condition, side by side (the paper's Figure 7)."""
+    """QE (%) and PE (deg) per subject and condition, side by side (the paper's Figure 7): first by the paper's
+    protocol (``original`` as reference and template, where the rows have its columns), then with the dataset's
+    HRIRs as reference and template."""
     import matplotlib  # noqa: PLC0415
 
     matplotlib.use("Agg")
@@ -298,22 +303,28 @@ def figure7(rows: list[dict], path: str | os.PathLike) -> Path:
 
     subjects = list(dict.fromkeys(r["subject"] for r in rows))
     conditions = list(dict.fromkeys(r["condition"] for r in rows))
+    protocols = [("qe_percent", "pe_deg", "template: the dataset's HRIRs")]
+    if any(r.get("qe_paper_percent") is not None for r in rows):
+        protocols.insert(0, ("qe_paper_percent", "pe_paper_deg", "paper's protocol; template: original (solved here)"))
     width = 0.8 / len(conditions)
-    fig, axes = plt.subplots(1, 2, figsize=(4.0 + 1.3 * len(subjects), 3.6))
-    for ax, (key, label) in zip(axes, (("qe_percent", "quadrant errors (%)"), ("pe_deg", "local polar RMS error (deg)"))):
-        for k, condition in enumerate(conditions):
-            values = [next((r[key] for r in rows if r["subject"] == s and r["condition"] == condition), np.nan)
-                      for s in subjects]
-            ax.bar(np.arange(len(subjects)) + (k - (len(conditions) - 1) / 2) * width, values, width,
-                   label=condition)
-        ax.set_xticks(np.arange(len(subjects)), subjects)
-        ax.set_ylabel(label)
-        ax.grid(axis="y", alpha=0.3)
-    # one legend under both panels: inside a panel it hides the tallest bars
-    handles, labels = axes[0].get_legend_handles_labels()
+    fig, axes = plt.subplots(len(protocols), 2, figsize=(4.0 + 1.3 * len(subjects), 0.4 + 3.2 * len(protocols)),
+                             squeeze=False)
+    for (qe_key, pe_key, title), panels in zip(protocols, axes):
+        for ax, key, label in ((panels[0], qe_key, "quadrant errors (%)"), (panels[1], pe_key, "local polar RMS error (deg)")):
+            for k, condition in enumerate(conditions):
+                values = [next((r[key] for r in rows if r["subject"] == s and r["condition"] == condition
+                                and r.get(key) is not None), np.nan) for s in subjects]
+                ax.bar(np.arange(len(subjects)) + (k - (len(conditions) - 1) / 2) * width, values, width,
+                       label=condition)
+            ax.set_xticks(np.arange(len(subjects)), subjects)
+            ax.set_ylabel(label)
+            ax.grid(axis="y", alpha=0.3)
+            ax.set_title(title, fontsize=8)
+    # one legend under all panels: inside a panel it hides the tallest bars
+    handles, labels = axes[0, 0].get_legend_handles_labels()
     fig.legend(handles, labels, loc="lower center", ncol=len(conditions), fontsize=8, frameon=False)
-    fig.suptitle("predicted sagittal-plane localisation (baumgartner2014, reference as template)", fontsize=9)
-    fig.tight_layout(rect=(0, 0.07, 1, 1))
+    fig.suptitle("predicted sagittal-plane localisation (baumgartner2014, S at 8 % QE on the template)", fontsize=9)
+    fig.tight_layout(rect=(0, 0.07 / len(protocols), 1, 1))
     with atomic_path(path) as tmp:
         fig.savefig(tmp, dpi=120, format="png")
     plt.close(fig)
@@ -388,6 +399,20 @@ def copy_sofa(hrtfs: dict[tuple[str, str], str], folder: str | os.PathLike) -> l
     written = []
     for (subject, condition), source in sorted(hrtfs.items()):
         target = folder / left_hrtf_name(subject, condition)
+        with atomic_path(target) as tmp:
+            shutil.copyfile(source, tmp)
+        written.append(target)
+    return written
+
+
+def copy_hard_scans(scans: dict[str, str], folder: str | os.PathLike) -> list[Path]:
+    """The fixed defective scan each subject's *_hard conditions started from, as ``<subject>_hard_scan.ply`` (mm,
+    head frame): kept with the results, so that the conditions can be judged and redone from the same scan."""
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    written = []
+    for subject, source in sorted(scans.items()):
+        target = folder / f"{subject}_hard_scan.ply"
         with atomic_path(target) as tmp:
             shutil.copyfile(source, tmp)
         written.append(target)

@@ -12,6 +12,8 @@ import numpy as np
 #: Lateral angles (deg) of the sagittal planes baumgartner2014 averages, as in the evaluation.
 LATERAL_ANGLES_DEG = (-20.0, 0.0, 20.0)
 REFERENCE_QE_PERCENT = 8.0
+#: The columns the paper's protocol adds to an evaluation's summary.csv (empty where a subject has no ``original``).
+PAPER_COLUMNS = ("qe_paper_percent", "pe_paper_deg", "delta_qe_paper_pp", "delta_pe_paper_deg")
 
 
 def paper_protocol(reference_hrtf: str | os.PathLike, conditions: dict[str, str | os.PathLike],
@@ -33,6 +35,34 @@ def paper_protocol(reference_hrtf: str | os.PathLike, conditions: dict[str, str 
     sensitivity = model.calibrate(REFERENCE_QE_PERCENT, closest=True)
     result = {"sensitivity_db": sensitivity, "reference": model.predict(sensitivity).as_dict()}
     for name, path in conditions.items():
-        condition = read_one_ear_completed(path, "left", dataset)
+        condition = dataset if name == "dataset" else read_one_ear_completed(path, "left", dataset)
         result[name] = LocalisationModel(condition, template, list(LATERAL_ANGLES_DEG)).predict(sensitivity).as_dict()
     return result
+
+
+def with_paper_columns(rows: list[dict], hrtfs: dict[tuple[str, str], str | os.PathLike],
+                       dataset_hrirs: dict[str, str | os.PathLike]) -> list[dict]:
+    """``rows`` of an evaluation's summary (one per subject and condition, the dataset's ``reference`` included)
+    with :data:`PAPER_COLUMNS` filled for every subject that has ``original`` among ``hrtfs`` ((subject,
+    condition) -> left-ear HRTF SOFA): QE (%) and PE (deg) by the paper's protocol and their differences from
+    ``original``'s. The ``reference`` row is the dataset's HRIRs heard with ``original`` as template."""
+    out = [dict(row) for row in rows]
+    for subject in dict.fromkeys(row["subject"] for row in out):
+        if (subject, "original") not in hrtfs:
+            continue
+        named = {row["condition"]: ("dataset" if row["condition"] == "reference" else row["condition"])
+                 for row in out if row["subject"] == subject and row["condition"] != "original"}
+        conditions = {name: hrtfs.get((subject, condition)) for condition, name in named.items()}
+        missing = [c for c, name in named.items() if name != "dataset" and conditions[name] is None]
+        if missing:
+            raise ValueError(f"{subject}: no solved HRTF of {', '.join(missing)} for the paper's protocol")
+        result = paper_protocol(hrtfs[subject, "original"], conditions, dataset_hrirs[subject])
+        base = result["reference"]
+        for row in out:
+            if row["subject"] != subject:
+                continue
+            prediction = base if row["condition"] == "original" else result[named[row["condition"]]]
+            row.update(qe_paper_percent=prediction["qe_percent"], pe_paper_deg=prediction["pe_deg"],
+                       delta_qe_paper_pp=prediction["qe_percent"] - base["qe_percent"],
+                       delta_pe_paper_deg=prediction["pe_deg"] - base["pe_deg"])
+    return out

@@ -78,6 +78,10 @@ def align_template(wildcards):
     return RUN.align_template(wildcards.subject)
 
 
+def detail_target(wildcards):
+    return RUN.detail_target(wildcards.subject, wildcards.detailed)
+
+
 def control_pinna(wildcards):
     return RUN.control_pinna(wildcards.subject, wildcards.control)
 

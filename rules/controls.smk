@@ -1,7 +1,8 @@
 # The evaluation's control conditions (config evaluation.conditions), each a head solved like the PPM head:
 # own_pinna, the head's own left pinna cut out and put back through the same stitch and remesh path (the
 # pipeline's error floor); default_ppm, the template at default parameters placed by the global pose only
-# (what the alignment buys).
+# (what the alignment buys); ppm_detail, the PPM fit with its personal-detail layer (ppm/align/detail.py);
+# ppm_hard, ppm_detail_hard and nricp_hard, the same from one fixed defective scan (and free-form NRICP).
 
 
 rule own_pinna_region:
@@ -44,6 +45,115 @@ rule place_default_ppm:
         runtime=measured_runtime("place_default_ppm"),
     script:
         "../workflow/scripts/align_ppm.py"
+
+
+rule personal_detail:
+    input:
+        target=detail_target,
+        blend=lambda wc: f"results/{wc.subject}/{'controls/ppm_hard/' if wc.detailed == 'ppm_detail_hard' else ''}align/aligned_pinna.blend",
+    output:
+        aligned="results/{subject}/controls/{detailed}/align/aligned_pinna.ply",
+        blend="results/{subject}/controls/{detailed}/align/aligned_pinna.blend",
+        summary="results/{subject}/controls/{detailed}/align/summary.json",
+        picture="results/{subject}/controls/{detailed}/align/distance_map.png",
+    log:
+        "logs/controls/personal_detail/{subject}_{detailed}.log",
+    benchmark:
+        "benchmarks/timings/controls/personal_detail/{subject}_{detailed}.tsv"
+    wildcard_constraints:
+        detailed="ppm_detail|ppm_detail_hard",
+    threads: 1
+    resources:
+        mem_mb=measured_mem_mb("personal_detail"),
+        runtime=measured_runtime("personal_detail"),
+    script:
+        "../workflow/scripts/personal_detail.py"
+
+
+# The *_hard conditions start from one fixed defective scan of the clean crop (evaluation.hard_scan), kept with
+# the evaluation's results; their distances are measured against the clean crop, the truth.
+rule hard_scan:
+    input:
+        crop=lambda wc: str(DATA_ROOT / wc.subject / "pinna_left_crop.ply"),
+    output:
+        scan="results/{subject}/controls/hard/scan.ply",
+        report="results/{subject}/controls/hard/scan.json",
+    log:
+        "logs/controls/hard_scan/{subject}.log",
+    benchmark:
+        "benchmarks/timings/controls/hard_scan/{subject}.tsv"
+    params:
+        settings=lambda wc: config["evaluation"]["hard_scan"],
+    threads: 1
+    resources:
+        mem_mb=measured_mem_mb("hard_scan"),
+        runtime=measured_runtime("hard_scan"),
+    script:
+        "../workflow/scripts/hard_scan.py"
+
+
+rule hard_target:
+    input:
+        scan="results/{subject}/controls/hard/scan.ply",
+    output:
+        target="results/{subject}/controls/hard/target/pinna_target.ply",
+        report="results/{subject}/controls/hard/target/target.json",
+    log:
+        "logs/controls/hard_target/{subject}.log",
+    benchmark:
+        "benchmarks/timings/controls/hard_target/{subject}.tsv"
+    params:
+        settings=lambda wc: {**config["align"], "scan_pose": "project_frame"},
+    threads: 1
+    resources:
+        mem_mb=measured_mem_mb("prepare_target"),
+        runtime=measured_runtime("prepare_target"),
+    script:
+        "../workflow/scripts/prepare_target.py"
+
+
+rule align_hard:
+    input:
+        target="results/{subject}/controls/hard/target/pinna_target.ply",
+        template=align_template,
+    output:
+        parameters_csv="results/{subject}/controls/ppm_hard/align/parameters.csv",
+        parameters_json="results/{subject}/controls/ppm_hard/align/parameters.json",
+        aligned="results/{subject}/controls/ppm_hard/align/aligned_pinna.ply",
+        blend="results/{subject}/controls/ppm_hard/align/aligned_pinna.blend",
+        distances="results/{subject}/controls/ppm_hard/align/distances.ply",
+        summary="results/{subject}/controls/ppm_hard/align/summary.json",
+        picture="results/{subject}/controls/ppm_hard/align/distance_map.png",
+    log:
+        "logs/controls/align_hard/{subject}.log",
+    benchmark:
+        "benchmarks/timings/controls/align_hard/{subject}.tsv"
+    threads: 1
+    resources:
+        mem_mb=measured_mem_mb("align_ppm"),
+        runtime=measured_runtime("align_ppm"),
+    script:
+        "../workflow/scripts/align_ppm.py"
+
+
+rule nricp_hard:
+    input:
+        target="results/{subject}/controls/hard/target/pinna_target.ply",
+        template=align_template,
+    output:
+        aligned="results/{subject}/controls/nricp_hard/align/aligned_pinna.ply",
+        summary="results/{subject}/controls/nricp_hard/align/summary.json",
+        picture="results/{subject}/controls/nricp_hard/align/distance_map.png",
+    log:
+        "logs/controls/nricp_hard/{subject}.log",
+    benchmark:
+        "benchmarks/timings/controls/nricp_hard/{subject}.tsv"
+    threads: 1
+    resources:
+        mem_mb=measured_mem_mb("nricp_hard"),
+        runtime=measured_runtime("nricp_hard"),
+    script:
+        "../workflow/scripts/nricp_fit.py"
 
 
 rule stitch_control:

@@ -15,7 +15,7 @@ rule condition_distances:
     benchmark:
         "benchmarks/timings/evaluation/condition_distances/{subject}_{condition}.tsv"
     wildcard_constraints:
-        condition="original|ppm|own_pinna|default_ppm",
+        condition="|".join(["original", "ppm", *CONTROLS]),
     threads: 1
     resources:
         mem_mb=measured_mem_mb("condition_distances"),
@@ -37,6 +37,7 @@ if EVALUATION_FOLDER:
             figure6=f"{EVALUATION_FOLDER}/figure6_distances.png",
             figure7=f"{EVALUATION_FOLDER}/figure7_qe_pe.png",
             sofa=directory(f"{EVALUATION_FOLDER}/sofa"),
+            hard_scans=directory(f"{EVALUATION_FOLDER}/hard_scans"),
         log:
             "logs/evaluation/evaluation_report.log",
         benchmark:

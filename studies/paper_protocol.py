@@ -1,11 +1,15 @@
 """The committed evaluation judged by the paper's own protocol: per subject, the unchanged head solved here
 (``original``) is the reference and the template, S is calibrated to 8 % QE on it, and every other solved
-condition is predicted with them (left ears solved, right ear from the dataset's reference HRIRs).
+condition is predicted with them (left ears solved, right ear from the dataset's reference HRIRs); the ``reference``
+row is the dataset's own HRIRs heard with that template.
 
     .venv/bin/python studies/paper_protocol.py [--evaluation evaluation/sonicom] [--data-root ../shared/data/sonicom]
+                                               [--update]
 
-Reads committed files only (about a minute). Last line (JSON): per subject S and, per condition, QE, PE and their
-differences from ``original`` (``delta_qe_pp``, ``delta_pe_deg``).
+Reads committed files only (about a minute). With ``--update`` the paper's columns of ``summary.csv``
+(reporting.paper_protocol.PAPER_COLUMNS) and Figure 7 are written anew from them, as the workflow's
+evaluation_report writes them. Last line (JSON): per subject S and, per condition, QE, PE and their differences from
+``original`` (``delta_qe_pp``, ``delta_pe_deg``).
 """
 from __future__ import annotations
 
@@ -23,30 +27,36 @@ def main() -> None:
     parser.add_argument("--evaluation", type=Path, default=ROOT / "evaluation" / "sonicom")
     parser.add_argument("--data-root", type=Path, default=ROOT.parent / "shared" / "data" / "sonicom")
     parser.add_argument("--hrir", default="hrir_mesh2hrtf_48k.sofa", help="the dataset's HRIRs in each subject folder")
+    parser.add_argument("--update", action="store_true", help="write the paper's columns into summary.csv and "
+                                                              "redraw figure7_qe_pe.png")
     args = parser.parse_args()
-    from reporting.paper_protocol import paper_protocol  # noqa: PLC0415
+    from reporting.evaluation import figure7, left_hrtf_files, read_summary_csv, write_summary_csv  # noqa: PLC0415
+    from reporting.paper_protocol import with_paper_columns  # noqa: PLC0415
 
-    sofa = args.evaluation / "sofa"
-    subjects = sorted({path.name.split("_")[0] for path in sofa.glob("*_original_left_HRTF.sofa")})
-    if not subjects:
-        raise SystemExit(f"{sofa}: no <subject>_original_left_HRTF.sofa; the paper's protocol needs the unchanged head")
-    figures = {}
+    summary = args.evaluation / "summary.csv"
+    rows = read_summary_csv(summary)
+    subjects = list(dict.fromkeys(row["subject"] for row in rows))
+    hrtfs = {(subject, condition): path for subject in subjects
+             for condition, path in left_hrtf_files(args.evaluation / "sofa", subject).items()}
+    if not any(condition == "original" for _, condition in hrtfs):
+        raise SystemExit(f"{args.evaluation / 'sofa'}: no <subject>_original_left_HRTF.sofa; the paper's protocol "
+                         "needs the unchanged head")
+    rows = with_paper_columns(rows, hrtfs, {s: args.data_root / s / args.hrir for s in subjects})
+    figures: dict[str, dict] = {}
     print(f"{'subject':8} {'condition':12} {'QE %':>7} {'PE deg':>7} {'dQE pp':>7} {'dPE deg':>7}")
-    for subject in subjects:
-        conditions = {path.name[len(subject) + 1:-len("_left_HRTF.sofa")]: path
-                      for path in sorted(sofa.glob(f"{subject}_*_left_HRTF.sofa"))}
-        reference = conditions.pop("original")
-        result = paper_protocol(reference, conditions, args.data_root / subject / args.hrir)
-        base = result["reference"]
-        rows = {"original": {"qe_percent": round(base["qe_percent"], 3), "pe_deg": round(base["pe_deg"], 3)}}
-        for name in conditions:
-            qe, pe = result[name]["qe_percent"], result[name]["pe_deg"]
-            rows[name] = {"qe_percent": round(qe, 3), "pe_deg": round(pe, 3),
-                          "delta_qe_pp": round(qe - base["qe_percent"], 3), "delta_pe_deg": round(pe - base["pe_deg"], 3)}
-        for name, row in rows.items():
-            print(f"{subject:8} {name:12} {row['qe_percent']:7.2f} {row['pe_deg']:7.2f} "
-                  f"{row.get('delta_qe_pp', 0.0):+7.2f} {row.get('delta_pe_deg', 0.0):+7.2f}", flush=True)
-        figures[subject] = {"sensitivity_db": round(result["sensitivity_db"], 4), "conditions": rows}
+    for row in rows:
+        if row.get("qe_paper_percent") is None:
+            continue
+        print(f"{row['subject']:8} {row['condition']:12} {row['qe_paper_percent']:7.2f} {row['pe_paper_deg']:7.2f} "
+              f"{row['delta_qe_paper_pp']:+7.2f} {row['delta_pe_paper_deg']:+7.2f}", flush=True)
+        entry = {"qe_percent": round(row["qe_paper_percent"], 3), "pe_deg": round(row["pe_paper_deg"], 3)}
+        if row["condition"] != "original":
+            entry.update(delta_qe_pp=round(row["delta_qe_paper_pp"], 3), delta_pe_deg=round(row["delta_pe_paper_deg"], 3))
+        figures.setdefault(row["subject"], {})[row["condition"]] = entry
+    if args.update:
+        write_summary_csv(summary, rows)
+        figure7(read_summary_csv(summary), args.evaluation / "figure7_qe_pe.png")
+        print(f"wrote the paper's columns into {summary} and redrew {args.evaluation / 'figure7_qe_pe.png'}")
     print(json.dumps(figures))
 
 

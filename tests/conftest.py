@@ -33,6 +33,15 @@ def model():
     pinna.set_parameters(PinnaParameters.default())
 
 
+@pytest.fixture(scope="session")
+def p143_both_ears(sonicom):
+    """SONICOM P143's closed head with both ears finely resolved (listener.dataset_heads.both_ears_head; mm,
+    the dataset's frame), built once for every test that needs it."""
+    from listener.dataset_heads import both_ears_head
+
+    return both_ears_head(sonicom / "P143")
+
+
 @pytest.fixture()
 def rng() -> np.random.Generator:
     return np.random.default_rng(20261123)

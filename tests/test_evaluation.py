@@ -142,7 +142,7 @@ def test_the_committed_sonicom_evaluation_parses_and_its_readme_follows_the_summ
     assert all(r["points"] > 0 and 0 <= r["median_mm"] <= r["p95_mm"] for r in regions)
     for line in where_lines(rows, regions):
         assert line in readme, line
-    assert set(GOALS) <= {"ppm", "own_pinna"}
+    assert set(GOALS) <= {"ppm", "own_pinna", "ppm_detail"}
     assert re.search(r"Made by `bash scripts/run.sh --configfile \S+`", readme)
 
 
@@ -168,6 +168,35 @@ def test_qe_and_pe_recomputed_from_the_committed_sofa_files_are_the_summary(soni
             assert row["sensitivity_db"] == pytest.approx(sensitivity, abs=1e-3)
             assert row["qe_percent"] == pytest.approx(predictions[condition].qe, abs=1e-3), (subject, condition)
             assert row["pe_deg"] == pytest.approx(predictions[condition].pe, abs=1e-3), (subject, condition)
+
+
+def test_the_paper_protocol_columns_recomputed_from_the_committed_sofa_files_are_the_summary(sonicom):
+    """The paper's protocol (original as reference and template, S at 8 % QE on it): summary.csv's
+    qe_paper_percent, pe_paper_deg and their deltas for every condition come again from the committed left-ear
+    HRTFs (the reference row: the dataset's HRIRs heard with that template), original sits at 8 % QE."""
+    from reporting.paper_protocol import PAPER_COLUMNS, paper_protocol
+
+    rows = read_summary_csv(COMMITTED / "summary.csv")
+    assert set(PAPER_COLUMNS) <= set(rows[0])
+    for subject in sorted({r["subject"] for r in rows}):
+        mine = {r["condition"]: r for r in rows if r["subject"] == subject}
+        files = {condition: COMMITTED / "sofa" / f"{subject}_{condition}_left_HRTF.sofa" for condition in mine
+                 if condition not in ("reference", "original")}
+        result = paper_protocol(COMMITTED / "sofa" / f"{subject}_original_left_HRTF.sofa",
+                                {**files, "dataset": None}, sonicom / subject / "hrir_mesh2hrtf_48k.sofa")
+        assert result["reference"]["qe_percent"] == pytest.approx(8.0, abs=0.05)
+        for condition, row in mine.items():
+            expected = result[{"original": "reference", "reference": "dataset"}.get(condition, condition)]
+            assert row["qe_paper_percent"] == pytest.approx(expected["qe_percent"], abs=1e-3), (subject, condition)
+            assert row["pe_paper_deg"] == pytest.approx(expected["pe_deg"], abs=1e-3), (subject, condition)
+            assert row["delta_qe_paper_pp"] == pytest.approx(
+                expected["qe_percent"] - result["reference"]["qe_percent"], abs=2e-3)
+            assert row["delta_pe_paper_deg"] == pytest.approx(expected["pe_deg"] - result["reference"]["pe_deg"],
+                                                              abs=2e-3)
+    # the issue's table (P143's PPM misses its own ear by about 4 pp by this protocol)
+    p143 = {r["condition"]: r for r in rows if r["subject"] == "P143"}
+    assert p143["ppm"]["delta_qe_paper_pp"] == pytest.approx(4.09, abs=0.01)
+    assert p143["own_pinna"]["delta_qe_paper_pp"] == pytest.approx(0.05, abs=0.01)
 
 
 def test_figures_page_and_readme_of_an_evaluation(tmp_path, sonicom):

@@ -35,8 +35,8 @@ def _angle_deg(a: np.ndarray, b: np.ndarray) -> float:
 
 
 @pytest.fixture(scope="module")
-def p143(sonicom) -> trimesh.Trimesh:
-    return both_ears_head(sonicom / "P143")
+def p143(p143_both_ears) -> trimesh.Trimesh:
+    return p143_both_ears
 
 
 @pytest.fixture(scope="module")
@@ -59,9 +59,10 @@ def test_the_frame_of_a_dataset_head_is_its_interaural_axis(p143_frame):
     assert p143_frame.nose_tip_mm[0] > 100.0
 
 
-@pytest.mark.parametrize("seed, unit", [(1, "cm"), (2, "m")])
+@pytest.mark.parametrize("seed, unit", [(2, "m")])
 def test_a_head_in_any_pose_and_unit_comes_back(p143, p143_frame, seed, unit):
-    """The same head turned at random, moved by up to 300 mm and written in cm or m: the frame found maps it
+    """The same head turned at random, moved by up to 300 mm and written in m (cm: the heads below): the frame
+    found maps it
     where the unposed head's frame maps the head (axis within 2 deg, origin within 2 mm, pitch within 2 deg)."""
     scale = {"mm": 1.0, "cm": 10.0, "m": 1000.0}[unit]
     posed, pose = _posed(p143, seed, scale)
@@ -79,10 +80,12 @@ def test_a_head_in_any_pose_and_unit_comes_back(p143, p143_frame, seed, unit):
     assert np.linalg.norm(frame.left_canal_mm - p143_frame.left_canal_mm) < 2.0
 
 
-@pytest.mark.parametrize("subject, seed", [("P039", 21), ("P067", 22)])
-def test_every_sonicom_head_comes_back_to_its_axis(sonicom, subject, seed):
-    """P039 and P067, turned at random and written in cm: the axis found is within 2 deg of the dataset's y, the
-    pitch within 2 deg of its x, the origin within 8 mm of its origin (the dataset's own convention, above)."""
+@pytest.mark.parametrize("subject, seed", [("P039", 21)])
+def test_another_sonicom_head_comes_back_to_its_axis(sonicom, subject, seed):
+    """P039 (whose deepest concha fill is the cymba, not the canal), turned at random and written in cm: the axis
+    found is within 2 deg of the dataset's y, the pitch within 2 deg of its x, the origin within 8 mm of its origin
+    (the dataset's own convention, above). P067 comes back as well (0.78 deg, the survey in
+    docs/stages/head-frame.md); it is left out here for CI time."""
     head = both_ears_head(sonicom / subject)
     posed, pose = _posed(head, seed, 10.0)
     frame = find_head_frame(posed, f"{subject} posed")
@@ -92,17 +95,15 @@ def test_every_sonicom_head_comes_back_to_its_axis(sonicom, subject, seed):
     assert np.linalg.norm(composite[:3, 3]) < 8.0
 
 
-def test_a_head_already_in_the_frame_stays_as_it_is(p143):
-    frame = find_head_frame(p143, "P143")
-    assert frame.kept
-    np.testing.assert_array_equal(frame.matrix, np.eye(4))
-    np.testing.assert_array_equal(frame.apply(p143).vertices, p143.vertices)
-
-
 def test_a_second_scanner_s_head_comes_back(sonicom):
-    """CGTUB's head (2.5 mm edges, both ears; another dataset's frame): turned at random and in cm, the axis
-    comes back within 2 deg of that dataset's y and the origin within 2 mm of its origin."""
+    """CGTUB's head (2.5 mm edges, both ears; another dataset's frame): as given (already in a project frame) it is
+    kept exactly as it is; turned at random and in cm, the axis comes back within 2 deg of that dataset's y and the
+    origin within 2 mm of its origin."""
     head = trimesh.load(sonicom.parent / "heads" / "cgtub_head_2mm.ply", process=False, force="mesh")
+    kept = find_head_frame(head, "CGTUB")
+    assert kept.kept
+    np.testing.assert_array_equal(kept.matrix, np.eye(4))
+    np.testing.assert_array_equal(kept.apply(head).vertices, head.vertices)
     posed, pose = _posed(head, 11, 10.0)
     frame = find_head_frame(posed, "CGTUB posed")
     composite = frame.matrix @ np.diag([0.1, 0.1, 0.1, 1.0]) @ pose

@@ -10,14 +10,13 @@ import trimesh
 from scipy.spatial.transform import Rotation
 
 from listener import ListenerError
-from listener.dataset_heads import both_ears_head
 from listener.prepare import OUTPUTS, main, prepare_head
 from mesh2hrtf_io.ear_canal import ear_canal_centre
 
 
 @pytest.fixture(scope="module")
-def p143(sonicom) -> trimesh.Trimesh:
-    return both_ears_head(sonicom / "P143")
+def p143(p143_both_ears) -> trimesh.Trimesh:
+    return p143_both_ears
 
 
 def _scan(head: trimesh.Trimesh, path, keep=None, unit_mm: float = 10.0) -> None:

@@ -150,3 +150,23 @@ def defective_scan(clean: trimesh.Trimesh, level: str, rng: np.random.Generator,
     matrix = random_pose(rng, unit, mirrored) if posed else np.eye(4)
     return DefectiveScan(apply_similarity(scan, matrix), matrix, level, unit if posed else "mm",
                          bool(posed and mirrored), kept_share)
+
+
+def subject_seed(subject: str, seed: int) -> list[int]:
+    """A seed sequence for one subject's fixed draw: the same scan on every machine, another for each subject."""
+    import zlib  # noqa: PLC0415
+
+    return [int(seed), zlib.crc32(subject.encode("utf-8"))]
+
+
+def hard_scan_of(crop_path, subject: str, level: str, seed: int) -> tuple[trimesh.Trimesh, dict]:
+    """The fixed defective scan of ``subject``'s clean crop (a file, mm, head frame) at ``level``: the scan (mm,
+    head frame) and a report (level, seed, share of the crop the scanner saw, points)."""
+    from ..mesh_io import load_left_pinna  # noqa: PLC0415
+
+    clean = load_left_pinna(crop_path)
+    draw = defective_scan(clean, level, np.random.default_rng(subject_seed(subject, seed)), posed=False)
+    report = {"crop": str(crop_path), "subject": subject, "level": level, "seed": int(seed),
+              "defects": defect_settings()["levels"][level], "kept_share": round(draw.kept_share, 4),
+              "vertices": int(len(draw.mesh.vertices)), "faces": int(len(draw.mesh.faces))}
+    return draw.mesh, report

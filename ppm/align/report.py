@@ -54,17 +54,22 @@ def reverse_distances_mm(target: Target, vertices_mm: np.ndarray, boundary_margi
         distance = cKDTree(target.points_mm).query(vertices_mm)[0]
         return distance, np.ones(len(vertices_mm), dtype=bool)
     closest, distance, _ = trimesh.proximity.closest_point(mesh, vertices_mm)
-    edges = mesh.edges_sorted
-    unique, counts = np.unique(edges, axis=0, return_counts=True)
-    boundary = np.unique(unique[counts == 1])
-    if len(boundary) == 0:
+    samples = boundary_samples(mesh)
+    if len(samples) == 0:
         return distance, np.ones(len(vertices_mm), dtype=bool)
-    # boundary edges sampled every ~0.25 mm, so that a long edge's middle is not missed
-    ends = mesh.vertices[unique[counts == 1]]
-    steps = np.linspace(0.0, 1.0, 5)[:, None, None]
-    samples = (ends[None, :, 0] * (1 - steps) + ends[None, :, 1] * steps).reshape(-1, 3)
     away = cKDTree(samples).query(closest)[0] >= boundary_margin_mm
     return distance, away
+
+
+def boundary_samples(mesh: trimesh.Trimesh, per_edge: int = 5) -> np.ndarray:
+    """(m, 3) points along the open boundary edges of ``mesh`` (the crop's edge and the rims of its holes), each
+    edge sampled at ``per_edge`` points so that a long edge's middle is not missed; empty for a closed mesh."""
+    unique, counts = np.unique(mesh.edges_sorted, axis=0, return_counts=True)
+    ends = np.asarray(mesh.vertices)[unique[counts == 1]]
+    if len(ends) == 0:
+        return np.zeros((0, 3))
+    steps = np.linspace(0.0, 1.0, per_edge)[:, None, None]
+    return (ends[None, :, 0] * (1 - steps) + ends[None, :, 1] * steps).reshape(-1, 3)
 
 
 def distance_summary(distance_mm: np.ndarray) -> dict[str, float]:

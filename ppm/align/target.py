@@ -64,6 +64,15 @@ def remove_outliers(points_mm: np.ndarray, neighbours: int = 8) -> np.ndarray:
     return spacing <= OUTLIER_SPACING_FACTOR * np.median(spacing)
 
 
+def surface_without_outliers(target: Target) -> trimesh.Trimesh:
+    """The prepared scan's surface without the faces of its outlier vertices (:func:`remove_outliers`: the points a
+    PPM fit ignores too), mm, project frame."""
+    mesh = target.mesh
+    if mesh is None or len(mesh.faces) == 0:
+        raise PpmError(f"{target.source}: this needs the scan's surface, not points only")
+    return crop_to_region(mesh, remove_outliers(np.asarray(mesh.vertices)))
+
+
 def hole_share(mesh: trimesh.Trimesh) -> float:
     """Estimated share of the surface missing to holes: the area that closing the inner boundary
     loops (all but the longest, outer one) would add, relative to the whole. Each hole's area is

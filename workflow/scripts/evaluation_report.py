@@ -12,7 +12,8 @@ configure_logging(snakemake)  # noqa: F821
 from mesh2hrtf_io.frequency_sets import describe_set  # noqa: E402
 from reporting.cost import subjects_timings  # noqa: E402
 from reporting.kept_fit import subject_fit_landmarks  # noqa: E402
-from reporting.evaluation import (copy_sofa, evaluation_rows, figure6, figure7, read_summary_csv,  # noqa: E402
+from reporting.paper_protocol import with_paper_columns  # noqa: E402
+from reporting.evaluation import (copy_hard_scans, copy_sofa, evaluation_rows, figure6, figure7, read_summary_csv,  # noqa: E402
                                   region_rows, write_html, write_readme, write_regions_csv, write_summary_csv)
 
 inputs, out, params = snakemake.input, snakemake.output, snakemake.params  # noqa: F821
@@ -22,6 +23,9 @@ heads = {(s, c): inputs[f"{s}_{c}_head"] for s, c in pairs}
 steps = {(s, c): list(inputs[f"{s}_{c}_steps"]) for s, c in pairs}
 steps = {key: [value] if isinstance(value, str) else value for key, value in steps.items()}
 rows = evaluation_rows("results", subjects, conditions, heads, steps, params.store or None)
+# the paper's protocol beside the dataset's: original as reference and template, S at 8 % QE on it
+rows = with_paper_columns(rows, {(s, c): inputs[f"{s}_{c}_hrtf"] for s, c in pairs},
+                          {s: inputs[f"{s}_reference"] for s in subjects})
 frequencies = json.loads(Path(inputs[f"{subjects[0]}_localisation"]).read_text())["frequency_set"]["frequencies_hz"]
 frequency_note = describe_set(frequencies)
 write_summary_csv(out.summary, rows)
@@ -32,6 +36,7 @@ positions = {s: subject_fit_landmarks(params.ppm_stores[s], inputs.get(f"{s}_ali
 regions = region_rows("results", subjects, conditions, positions)
 write_regions_csv(out.regions, regions)
 copy_sofa({(s, c): inputs[f"{s}_{c}_hrtf"] for s, c in pairs}, out.sofa)
+copy_hard_scans({s: inputs[f"{s}_hard_scan"] for s in subjects if f"{s}_hard_scan" in inputs.keys()}, out.hard_scans)
 figure7(rows, out.figure7)
 figure6(Path("results"), subjects, conditions, out.figure6)
 configfiles = list(params.configfiles)

@@ -1,0 +1,118 @@
+"""ppm.align.detail: the personal-detail layer takes a detail the PPM cannot (a smooth 0.8 mm bulge) from a
+defective scan, ignores holes, outliers and spikes, keeps the rim, folds nothing, and lives in the .blend as the
+shape key Personal_detail (weight 0: the PPM as fitted)."""
+from __future__ import annotations
+
+import subprocess
+import sys
+import textwrap
+
+import numpy as np
+import pytest
+import trimesh
+
+from ppm.align.detail import personal_detail, rim_taper, rim_vertices
+from ppm.align.synthetic import add_scan_defects
+from ppm.align.target import target_from_mesh
+from ppm.errors import PpmError
+from ppm.parameters import PinnaParameters, random_parameters
+
+BULGE_MM = 0.8
+BULGE_SIGMA_MM = 3.0
+
+
+@pytest.fixture(scope="module")
+def posed(model):
+    """The packaged PPM at random parameters: (vertices mm, faces, vertex normals)."""
+    model.set_parameters(random_parameters(np.random.default_rng(5), 0.5))
+    vertices = model.evaluate()
+    mesh = trimesh.Trimesh(vertices, model.faces, process=False)
+    yield vertices, model.faces, np.asarray(mesh.vertex_normals)
+    model.set_parameters(PinnaParameters.default())
+
+
+def _bulge(vertices: np.ndarray, faces: np.ndarray, normals: np.ndarray) -> tuple[np.ndarray, int]:
+    """A smooth 0.8 mm bulge along the normals, centred on the vertex farthest along the surface from the rim
+    (deep in the pinna: the detail a template of other ears does not have); (n, 3) displacement, its centre."""
+    taper = rim_taper(vertices, faces, 40.0)
+    centre = int(np.argmax(taper))
+    weight = np.exp(-np.sum((vertices - vertices[centre]) ** 2, axis=1) / (2 * BULGE_SIGMA_MM ** 2))
+    return BULGE_MM * weight[:, None] * normals, centre
+
+
+def _spiked(scan: trimesh.Trimesh, rng: np.random.Generator, share: float = 0.01) -> trimesh.Trimesh:
+    vertices = np.array(scan.vertices)
+    picked = rng.random(len(vertices)) < share
+    vertices[picked] += 3.0 * np.asarray(scan.vertex_normals)[picked]
+    return trimesh.Trimesh(vertices, scan.faces, process=False)
+
+
+def test_the_layer_takes_a_detail_from_a_defective_scan_and_nothing_else(posed):
+    vertices, faces, normals = posed
+    bulge, centre = _bulge(vertices, faces, normals)
+    rng = np.random.default_rng(11)
+    truth = trimesh.Trimesh(vertices + bulge, faces, process=False)
+    # a hole away from the bulge, noise, outliers thrown off and spikes along the normals
+    far = np.flatnonzero((np.linalg.norm(vertices - vertices[centre], axis=1) > 15.0) & (rim_taper(vertices, faces, 8.0) == 1.0))
+    scan = add_scan_defects(truth, rng, noise_mm=0.05, holes=1, hole_radius_mm=3.0, outlier_share=0.02,
+                            hole_centres=far)
+    scan = _spiked(scan, rng)
+    target = target_from_mesh(scan, "bulged PPM scan")
+    detail = personal_detail(vertices, faces, target)
+    moved = vertices + detail.displacement_mm
+
+    bulged = np.linalg.norm(bulge, axis=1) > 0.4
+    before = np.linalg.norm(truth.vertices[bulged] - vertices[bulged], axis=1)
+    after = np.linalg.norm(truth.vertices[bulged] - moved[bulged], axis=1)
+    assert np.median(after) < 0.15 * np.median(before)  # most of the bulge is taken
+    assert np.abs(detail.offsets_mm).max() < BULGE_MM + 0.2  # no spike or outlier is followed
+    flat = np.linalg.norm(bulge, axis=1) < 0.01
+    assert np.percentile(np.abs(detail.offsets_mm[flat]), 95) < 0.1  # where the scan agrees, nothing moves
+    # where the scan has a hole, the PPM's shape stays
+    seen = trimesh.proximity.closest_point(trimesh.Trimesh(scan.vertices, scan.faces, process=False), vertices)[1]
+    in_hole = flat & (seen > 1.5)
+    assert in_hole.sum() > 5 and np.abs(detail.offsets_mm[in_hole]).max() < 0.1
+    # the rim the stitch joins stays put, and no face folds
+    np.testing.assert_array_equal(detail.offsets_mm[rim_vertices(faces)], 0.0)
+    before_normals, after_normals = (trimesh.Trimesh(v, faces, process=False).face_normals for v in (vertices, moved))
+    assert np.einsum("ij,ij->i", before_normals, after_normals).min() > 0.0
+    assert detail.summary()["offset_max_mm"] == pytest.approx(np.abs(detail.offsets_mm).max(), abs=1e-4)
+
+
+def test_a_scan_of_another_place_moves_nothing(posed):
+    """A scan 30 mm away (another ear, a wrong crop) gives no evidence within reach: the PPM stays as fitted."""
+    vertices, faces, _ = posed
+    target = target_from_mesh(trimesh.Trimesh(vertices + [0.0, 30.0, 0.0], faces, process=False), "moved PPM")
+    detail = personal_detail(vertices, faces, target)
+    assert not detail.trusted.any() and np.abs(detail.offsets_mm).max() == 0.0
+
+
+def test_the_layer_is_a_shape_key_of_the_blend(model, posed, tmp_path):
+    vertices, faces, normals = posed
+    bulge, _ = _bulge(vertices, faces, normals)
+    mismatch = model.set_personal_detail(bulge)
+    assert mismatch < 1e-3
+    np.testing.assert_allclose(model.evaluate(), vertices + bulge, atol=2e-3)
+    model.set_detail_weight(0.0)
+    np.testing.assert_allclose(model.evaluate(), vertices, atol=1e-4)
+    model.set_detail_weight(1.0)
+    blend = tmp_path / "detail.blend"
+    model.save_blend(blend)
+    np.save(tmp_path / "expected.npy", model.evaluate())
+    model.set_detail_weight(0.0)
+    # a fresh process opens it: the pose and the key at weight 1 come back; weight 0 is the PPM as fitted
+    script = textwrap.dedent(f"""
+        import numpy as np
+        from ppm.model import PinnaModel
+        model = PinnaModel.from_blend({str(blend)!r})
+        np.save({str(tmp_path / 'with.npy')!r}, model.evaluate())
+        model.set_detail_weight(0.0)
+        np.save({str(tmp_path / 'without.npy')!r}, model.evaluate())
+        print(model.detail_weight)
+    """)
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr[-2000:]
+    np.testing.assert_allclose(np.load(tmp_path / "with.npy"), np.load(tmp_path / "expected.npy"), atol=1e-4)
+    np.testing.assert_allclose(np.load(tmp_path / "without.npy"), vertices, atol=1e-3)
+    with pytest.raises(PpmError, match="expected finite"):
+        model.set_personal_detail(np.full_like(vertices, np.nan))

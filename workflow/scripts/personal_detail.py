@@ -1,0 +1,33 @@
+"""Rule personal_detail: the personal-detail layer (ppm.align.detail) on a subject's PPM fit, towards the trusted
+parts of its prepared scan: the posed PPM with the layer (PLY, mm), the .blend with the layer as the shape key
+Personal_detail (weight 1), a summary and a distance map."""
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(snakemake.scriptdir)))  # noqa: F821
+from _logging import configure_logging  # noqa: E402
+
+configure_logging(snakemake)  # noqa: F821
+
+import bpy  # noqa: E402,F401  (before anything that may load pymeshlab)
+
+import json  # noqa: E402
+
+from ppm.align import prepare_target  # noqa: E402
+from ppm.align.detail import add_personal_detail  # noqa: E402
+from ppm.align.report import one_sided_distances_mm  # noqa: E402
+from ppm.atomic import write_text_atomic  # noqa: E402
+from ppm.model import PinnaModel  # noqa: E402
+from ppm.render import render_distance_map  # noqa: E402
+
+inputs, out = snakemake.input, snakemake.output  # noqa: F821
+model = PinnaModel.from_blend(inputs.blend)
+target = prepare_target(inputs.target, side="left", segment=False)  # prepared already
+detail, summary = add_personal_detail(model, target)
+summary.update(target=inputs.target, fit=inputs.blend)
+model.export(out.aligned)
+model.save_blend(out.blend)
+distance = one_sided_distances_mm(target, model.evaluate(), model.faces)
+render_distance_map(target.points_mm, None, distance, out.picture,
+                    f"{snakemake.wildcards.subject}: scan -> PPM with its personal detail")  # noqa: F821
+write_text_atomic(out.summary, json.dumps(summary, indent=2) + "\n")

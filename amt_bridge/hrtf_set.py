@@ -119,6 +119,30 @@ def resampled_at(hrirs: HrirSet, frequencies_hz, interpolant: str = "pchip") -> 
     return dataclasses.replace(hrirs, irs=irs, source=f"{hrirs.source} at {frequencies.size} frequencies")
 
 
+def _unit_vectors(hrirs: HrirSet) -> np.ndarray:
+    azimuth, elevation = np.radians(hrirs.azimuth_deg), np.radians(hrirs.elevation_deg)
+    return np.stack([np.cos(elevation) * np.cos(azimuth), np.cos(elevation) * np.sin(azimuth), np.sin(elevation)], 1)
+
+
+def on_common_directions(first: HrirSet, second: HrirSet, tolerance_deg: float = 2.0) -> tuple[HrirSet, HrirSet]:
+    """Both sets on the same directions: each direction of ``second`` that ``first`` has within ``tolerance_deg``
+    (great circle), ``first``'s nearest response taking ``second``'s direction. baumgartner2014's quadrant error
+    depends on how densely a sagittal plane is sampled, so two sets on different grids (a listener's full grid,
+    2.5 deg polar steps; SONICOM's 793 directions) are compared only on the directions they share."""
+    from scipy.spatial import cKDTree  # noqa: PLC0415
+
+    distance, nearest = cKDTree(_unit_vectors(first)).query(_unit_vectors(second))
+    shared = np.flatnonzero(distance <= 2.0 * np.sin(np.radians(tolerance_deg) / 2.0))
+    if shared.size < 4:
+        raise AmtBridgeError(f"{first.source} and {second.source} share only {shared.size} directions within "
+                             f"{tolerance_deg} deg; the model needs both sets on common sagittal planes")
+    return (dataclasses.replace(first, irs=first.irs[nearest[shared]], azimuth_deg=second.azimuth_deg[shared],
+                                elevation_deg=second.elevation_deg[shared],
+                                source=f"{first.source} at {shared.size} directions of {second.source}"),
+            dataclasses.replace(second, irs=second.irs[shared], azimuth_deg=second.azimuth_deg[shared],
+                                elevation_deg=second.elevation_deg[shared]))
+
+
 def _read_sofa_responses(path: str | os.PathLike) -> tuple[np.ndarray, float, np.ndarray, np.ndarray]:
     """(impulse responses (M, R, N), rate in Hz, azimuth, elevation in degrees) of a SimpleFreeFieldHRIR or
     SimpleFreeFieldHRTF file, any number of receivers R."""

@@ -102,17 +102,23 @@ def report(subject: str, seed: int) -> dict:
     summary.update(ears_solved=len(ears) if hrir.is_file() else 0, cpu_hours=round(cpu / 3600.0, 3),
                    delta_qe_pp=None, delta_pe_deg=None)
     if hrir.is_file():
-        from amt_bridge.hrtf_set import read_hrtf_set  # noqa: PLC0415
+        import sofar  # noqa: PLC0415
+
+        from amt_bridge.hrtf_set import on_common_directions, read_hrtf_set, resampled_at  # noqa: PLC0415
         from amt_bridge.model import LocalisationModel  # noqa: PLC0415
 
-        reference = read_hrtf_set(SONICOM / subject / "hrir_mesh2hrtf_48k.sofa")
-        personal = read_hrtf_set(hrir)
+        # the evaluation's protocol: the dataset's HRIRs, rebuilt at the solved frequencies, are the template
+        # with S at 8 % QE on themselves; the personal set is heard with them, both on the directions they share
+        frequencies = np.asarray(sofar.read_sofa(str(hrir.with_name("HRTF.sofa")), verify=False).N)
+        dataset = resampled_at(read_hrtf_set(SONICOM / subject / "hrir_mesh2hrtf_48k.sofa"), frequencies)
+        personal, reference = on_common_directions(read_hrtf_set(hrir), dataset)
         own = LocalisationModel(reference, reference, [-20.0, 0.0, 20.0])
-        sensitivity = own.calibrate(8.0)
+        sensitivity = own.calibrate(8.0, closest=True)
         base_prediction = own.predict(sensitivity)
         prediction = LocalisationModel(personal, reference, [-20.0, 0.0, 20.0]).predict(sensitivity)
         summary.update(delta_qe_pp=round(prediction.qe - base_prediction.qe, 3),
-                       delta_pe_deg=round(prediction.pe - base_prediction.pe, 3))
+                       delta_pe_deg=round(prediction.pe - base_prediction.pe, 3),
+                       directions_compared=int(reference.irs.shape[0]))
     print(f"{subject} as a new listener: frame axis {summary['frame_axis_error_deg']:.2f} deg off the dataset's y, "
           f"origin {summary['frame_origin_error_mm']:.1f} mm off its origin; fits {summary['left_fit_median_mm']:.2f} / "
           f"{summary['right_fit_median_mm']:.2f} mm (median, left / right); NumCalc {summary['cpu_hours']:.2f} CPU h "

@@ -5,7 +5,9 @@ Localisation: the listener's own set is the template, with S calibrated so that 
 quadrant errors; each other set (other listeners of the run, and the sets of config ``listener.comparison_sets``,
 e.g. SONICOM's) is then a non-individual HRTF heard with that template. The gain of personalising is their QE and
 PE minus the own set's. Other sets are sampled at the listener's solved frequencies (pchip on magnitude and
-unwrapped phase, :func:`amt_bridge.hrtf_set.resampled_at`) and rebuilt, so all sets share rate and length.
+unwrapped phase, :func:`amt_bridge.hrtf_set.resampled_at`) and rebuilt, so all sets share rate and length; each
+comparison is made on the directions the two sets share (:func:`amt_bridge.hrtf_set.on_common_directions`), with
+S calibrated to 8 % on the own set at those directions, as the quadrant error depends on the grid's density.
 """
 from __future__ import annotations
 
@@ -28,7 +30,7 @@ def listener_localisation(own_hrtf: str | os.PathLike, others: dict[str, str | o
     QE, and of each other set (name -> SOFA, HRIR or HRTF) with the own template at that S."""
     import sofar  # noqa: PLC0415
 
-    from amt_bridge.hrtf_set import read_hrtf_set, resampled_at  # noqa: PLC0415
+    from amt_bridge.hrtf_set import on_common_directions, read_hrtf_set, resampled_at  # noqa: PLC0415
     from amt_bridge.model import LocalisationModel  # noqa: PLC0415
 
     frequencies = np.asarray(sofar.read_sofa(str(own_hrtf), verify=False).N)
@@ -36,13 +38,18 @@ def listener_localisation(own_hrtf: str | os.PathLike, others: dict[str, str | o
     model = LocalisationModel(own, own, list(LATERAL_ANGLES_DEG))
     sensitivity = model.calibrate(QE_CALIBRATION_PERCENT, closest=True)
     reference = model.predict(sensitivity).as_dict()
-    rows = {"own": {"qe_percent": reference["qe_percent"], "pe_deg": reference["pe_deg"]}}
+    rows = {"own": {"qe_percent": reference["qe_percent"], "pe_deg": reference["pe_deg"],
+                    "directions": int(own.irs.shape[0])}}
     for name, path in others.items():
-        other = resampled_at(read_hrtf_set(path), frequencies)
-        predicted = LocalisationModel(other, own, list(LATERAL_ANGLES_DEG)).predict(sensitivity).as_dict()
+        own_there, other = on_common_directions(own, resampled_at(read_hrtf_set(path), frequencies))
+        template = LocalisationModel(own_there, own_there, list(LATERAL_ANGLES_DEG))
+        there = template.calibrate(QE_CALIBRATION_PERCENT, closest=True)
+        base = template.predict(there).as_dict()
+        predicted = LocalisationModel(other, own_there, list(LATERAL_ANGLES_DEG)).predict(there).as_dict()
         rows[name] = {"qe_percent": predicted["qe_percent"], "pe_deg": predicted["pe_deg"],
-                      "gain_qe_pp": predicted["qe_percent"] - reference["qe_percent"],
-                      "gain_pe_deg": predicted["pe_deg"] - reference["pe_deg"]}
+                      "gain_qe_pp": predicted["qe_percent"] - base["qe_percent"],
+                      "gain_pe_deg": predicted["pe_deg"] - base["pe_deg"], "directions": int(other.irs.shape[0]),
+                      "sensitivity_db": there}
     return {"sensitivity_db": sensitivity, "calibration_qe_percent": QE_CALIBRATION_PERCENT, "sets": rows}
 
 

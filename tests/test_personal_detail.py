@@ -61,22 +61,24 @@ def test_the_layer_takes_a_detail_from_a_defective_scan_and_nothing_else(posed):
     detail = personal_detail(vertices, faces, target)
     moved = vertices + detail.displacement_mm
 
+    # surface to surface (the layer may slide vertices along the surface): the bulge's vertices to the truth
     bulged = np.linalg.norm(bulge, axis=1) > 0.4
-    before = np.linalg.norm(truth.vertices[bulged] - vertices[bulged], axis=1)
-    after = np.linalg.norm(truth.vertices[bulged] - moved[bulged], axis=1)
+    before = trimesh.proximity.closest_point(truth, vertices[bulged])[1]
+    after = trimesh.proximity.closest_point(truth, moved[bulged])[1]
     assert np.median(after) < 0.15 * np.median(before)  # most of the bulge is taken
-    assert np.abs(detail.offsets_mm).max() < BULGE_MM + 0.2  # no spike or outlier is followed
+    off_truth = trimesh.proximity.closest_point(truth, moved)[1]
+    assert off_truth.max() < 0.5  # no spike (3 mm) or outlier (2-8 mm) is followed anywhere
     flat = np.linalg.norm(bulge, axis=1) < 0.01
-    assert np.percentile(np.abs(detail.offsets_mm[flat]), 95) < 0.1  # where the scan agrees, nothing moves
+    assert np.percentile(off_truth[flat], 95) < 0.1  # where the scan agrees with the PPM, the surface stays
     # where the scan has a hole, the PPM's shape stays
     seen = trimesh.proximity.closest_point(trimesh.Trimesh(scan.vertices, scan.faces, process=False), vertices)[1]
     in_hole = flat & (seen > 1.5)
-    assert in_hole.sum() > 5 and np.abs(detail.offsets_mm[in_hole]).max() < 0.1
+    assert in_hole.sum() > 5 and detail.size_mm[in_hole].max() < 0.1
     # the rim the stitch joins stays put, and no face folds
-    np.testing.assert_array_equal(detail.offsets_mm[rim_vertices(faces)], 0.0)
+    np.testing.assert_array_equal(detail.displacement_mm[rim_vertices(faces)], 0.0)
     before_normals, after_normals = (trimesh.Trimesh(v, faces, process=False).face_normals for v in (vertices, moved))
     assert np.einsum("ij,ij->i", before_normals, after_normals).min() > 0.0
-    assert detail.summary()["offset_max_mm"] == pytest.approx(np.abs(detail.offsets_mm).max(), abs=1e-4)
+    assert detail.summary()["displacement_max_mm"] == pytest.approx(detail.size_mm.max(), abs=1e-4)
 
 
 def test_a_scan_of_another_place_moves_nothing(posed):
@@ -84,7 +86,7 @@ def test_a_scan_of_another_place_moves_nothing(posed):
     vertices, faces, _ = posed
     target = target_from_mesh(trimesh.Trimesh(vertices + [0.0, 30.0, 0.0], faces, process=False), "moved PPM")
     detail = personal_detail(vertices, faces, target)
-    assert not detail.trusted.any() and np.abs(detail.offsets_mm).max() == 0.0
+    assert not detail.trusted.any() and detail.size_mm.max() == 0.0
 
 
 def test_the_layer_is_a_shape_key_of_the_blend(model, posed, tmp_path):

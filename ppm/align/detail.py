@@ -20,7 +20,6 @@ import scipy.sparse as sp
 import trimesh
 import yaml
 from scipy.sparse.csgraph import dijkstra
-from scipy.sparse.linalg import spsolve
 from scipy.spatial import cKDTree
 
 from ..errors import PpmError
@@ -35,13 +34,15 @@ class DetailSettings:
     reach_mm: float
     normal_agreement_deg: float
     edge_margin_mm: float
+    over_surface_deg: float
     spike_mm: float
     spike_radius_mm: float
-    smoothness_mm2: float
+    stiffness_mm2: tuple[float, ...]
+    iterations_per_stiffness: int
     decay: float
+    reverse_weight: float
     rim_taper_mm: float
-    max_offset_mm: float
-    iterations: int
+    max_displacement_mm: float
 
     @classmethod
     def packaged(cls, **overrides) -> "DetailSettings":
@@ -50,6 +51,7 @@ class DetailSettings:
         unknown = set(values) - {f.name for f in dataclasses.fields(cls)}
         if unknown:
             raise PpmError(f"ppm/data/personal_detail.yaml: unknown setting(s) {sorted(unknown)}")
+        values["stiffness_mm2"] = tuple(float(v) for v in values["stiffness_mm2"])
         return cls(**values)
 
 
@@ -62,29 +64,27 @@ def _packaged_settings() -> dict:
 class PersonalDetail:
     """A personal-detail layer of one posed PPM.
 
-    offsets_mm : (n,) offset of every vertex along ``normals`` (mm).
-    normals : (n, 3) unit vertex normals of the posed PPM the offsets go along.
+    displacement_mm : (n, 3) displacement of every vertex (mm, project frame).
     trusted : (n,) whether the vertex took scan evidence in the last iteration.
-    halvings : rounds of halving the offsets around folded faces.
+    halvings : rounds of halving the displacements around folded faces.
     """
 
-    offsets_mm: np.ndarray
-    normals: np.ndarray
+    displacement_mm: np.ndarray
     trusted: np.ndarray
     halvings: int
 
     @property
-    def displacement_mm(self) -> np.ndarray:
-        """(n, 3) displacement of every vertex (mm)."""
-        return self.offsets_mm[:, None] * self.normals
+    def size_mm(self) -> np.ndarray:
+        """(n,) length of every vertex's displacement (mm)."""
+        return np.linalg.norm(self.displacement_mm, axis=1)
 
     def summary(self) -> dict:
         """Figures for a fit's report (mm and shares)."""
-        size = np.abs(self.offsets_mm)
+        size = self.size_mm
         return {"trusted_share": round(float(self.trusted.mean()), 4),
-                "offset_median_mm": round(float(np.median(size)), 4),
-                "offset_p95_mm": round(float(np.percentile(size, 95)), 4),
-                "offset_max_mm": round(float(size.max()), 4), "fold_halvings": self.halvings}
+                "displacement_median_mm": round(float(np.median(size)), 4),
+                "displacement_p95_mm": round(float(np.percentile(size, 95)), 4),
+                "displacement_max_mm": round(float(size.max()), 4), "fold_halvings": self.halvings}
 
 
 def rim_vertices(faces: np.ndarray) -> np.ndarray:
@@ -131,63 +131,104 @@ def _face_normals(vertices_mm: np.ndarray, faces: np.ndarray) -> np.ndarray:
     return normals / np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-12)
 
 
-def scan_evidence(vertices_mm: np.ndarray, normals: np.ndarray, scan: trimesh.Trimesh, edge_tree: cKDTree | None,
-                  settings: DetailSettings) -> tuple[np.ndarray, np.ndarray]:
-    """(normal offset r from every vertex to its closest scan point along its normal, mm; trust mask)."""
-    closest, distance, triangle = trimesh.proximity.closest_point(scan, vertices_mm)
-    offset = np.einsum("ij,ij->i", closest - vertices_mm, normals)
-    agree = np.einsum("ij,ij->i", scan.face_normals[triangle], normals) >= np.cos(np.deg2rad(settings.normal_agreement_deg))
-    trusted = (distance <= settings.reach_mm) & agree
-    if edge_tree is not None:
-        trusted &= edge_tree.query(closest)[0] >= settings.edge_margin_mm
-    if trusted.any():  # neighbours agree: a spike or an outlier sheet stands out of its neighbourhood
-        kept = np.flatnonzero(trusted)
-        tree = cKDTree(vertices_mm[kept])
-        groups = tree.query_ball_point(vertices_mm[kept], settings.spike_radius_mm)
-        local = np.array([np.median(offset[kept[g]]) for g in groups])
-        trusted[kept[np.abs(offset[kept] - local) > settings.spike_mm]] = False
-    return offset, trusted
+def neighbours_agree(points_mm: np.ndarray, offsets_mm: np.ndarray, radius_mm: float, tolerance_mm: float) -> np.ndarray:
+    """Whether each point's offset lies within ``tolerance_mm`` of the median offset of the points within
+    ``radius_mm`` of it (a spike or an outlier sheet stands out of its neighbourhood)."""
+    if len(points_mm) == 0:
+        return np.zeros(0, dtype=bool)
+    groups = cKDTree(points_mm).query_ball_point(points_mm, radius_mm)
+    local = np.array([np.median(offsets_mm[group]) for group in groups])
+    return np.abs(offsets_mm - local) <= tolerance_mm
+
+
+def _trusted_pairs(points_mm: np.ndarray, normals: np.ndarray, closest: np.ndarray, distance: np.ndarray,
+                   closest_normals: np.ndarray, scan_edge: cKDTree | None, edge_points: np.ndarray,
+                   ppm_points: np.ndarray, settings: DetailSettings) -> np.ndarray:
+    """Which correspondences (points -> their closest points on the other surface) are trusted: near, facing the
+    same way, over the scan's surface rather than beyond its open edge, and in agreement with their neighbours.
+    ``edge_points``: where each pair touches the scan (the closest point for model -> scan, the point itself for
+    scan -> model); ``ppm_points``: where it touches the PPM, whose neighbourhood judges it (a spike's tip stands
+    alone in space, but over a PPM surface where every other pair says otherwise)."""
+    trusted = (distance <= settings.reach_mm) & (
+        np.einsum("ij,ij->i", closest_normals, normals) >= np.cos(np.deg2rad(settings.normal_agreement_deg)))
+    if scan_edge is not None:
+        # near the scan's open boundary (the crop's edge, a hole's rim) a pair counts only where it runs along the
+        # normal: a point over the surface, not one beyond the edge that the edge merely happens to be closest to
+        near_edge = scan_edge.query(edge_points)[0] < settings.edge_margin_mm
+        along = np.abs(np.einsum("ij,ij->i", closest - points_mm, closest_normals))
+        over = (along >= np.cos(np.deg2rad(settings.over_surface_deg)) * distance) | (distance < 0.1)
+        trusted &= ~(near_edge & ~over)
+    kept = np.flatnonzero(trusted)
+    offsets = np.einsum("ij,ij->i", closest[kept] - points_mm[kept], closest_normals[kept])
+    trusted[kept[~neighbours_agree(ppm_points[kept], offsets, settings.spike_radius_mm, settings.spike_mm)]] = False
+    return trusted
 
 
 def personal_detail(vertices_mm: np.ndarray, faces: np.ndarray, target: Target,
                     settings: DetailSettings | None = None) -> PersonalDetail:
-    """The personal-detail layer of a posed PPM (``vertices_mm``, ``faces``: mm, project frame) on ``target``."""
+    """The personal-detail layer of a posed PPM (``vertices_mm``, ``faces``: mm, project frame) on ``target``.
+
+    A displacement field U (n, 3) minimises, per stiffness s of the schedule (stiff to supple, each a few times with
+    the correspondences found again on the displaced surface),
+
+        sum_trusted |x_i + u_i - c_i|^2 + w sum_trusted scan points |B_j (x + u) - p_j|^2 + s tr(U^T L U) + d |U|^2,
+
+    c_i the closest scan point of vertex i, B_j the barycentric row of scan point p_j's closest point on the
+    displaced PPM (so that the scan also pulls the PPM into hollows no vertex maps to), L the Laplacian of
+    :func:`laplacian`; the rim is held. Then U is bounded and halved around any folded face until none is."""
+    from scipy.sparse.linalg import factorized  # noqa: PLC0415
+
     settings = settings or DetailSettings.packaged()
     vertices_mm = np.asarray(vertices_mm, dtype=np.float64)
     faces = np.asarray(faces, dtype=np.int64)
     if not np.isfinite(vertices_mm).all():
         raise PpmError("the posed PPM has non-finite vertices; fit it again before adding the personal detail")
-    normals = np.asarray(trimesh.Trimesh(vertices_mm, faces, process=False).vertex_normals, dtype=np.float64)
     scan = surface_without_outliers(target)
-    edges = boundary_samples(scan)
-    edge_tree = cKDTree(edges) if len(edges) else None
+    scan_points, scan_normals = np.asarray(scan.vertices), np.asarray(scan.vertex_normals)
+    edge_points = boundary_samples(scan)
+    scan_edge = cKDTree(edge_points) if len(edge_points) else None
     n = len(vertices_mm)
+    smoothing = laplacian(vertices_mm, faces)
     taper = rim_taper(vertices_mm, faces, settings.rim_taper_mm)
     free = np.flatnonzero(taper > 0.0)
-    system = (settings.smoothness_mm2 * laplacian(vertices_mm, faces) + settings.decay * sp.identity(n)).tocsr()
-    system = system[free][:, free]
-    offsets = np.zeros(n)
+    displacement = np.zeros((n, 3))
     trusted = np.zeros(n, dtype=bool)
-    for _ in range(max(1, settings.iterations)):
-        residual, trusted = scan_evidence(vertices_mm + offsets[:, None] * normals, normals, scan, edge_tree, settings)
-        wanted = offsets + residual
-        weight = trusted[free].astype(np.float64)
-        solved = spsolve((system + sp.diags(weight)).tocsc(), weight * wanted[free])
-        offsets = np.zeros(n)
-        offsets[free] = solved
-        offsets *= taper
-    offsets = np.clip(offsets, -settings.max_offset_mm, settings.max_offset_mm)
+    for stiffness in settings.stiffness_mm2:
+        for _ in range(max(1, settings.iterations_per_stiffness)):
+            moved = trimesh.Trimesh(vertices_mm + displacement, faces, process=False)
+            closest, distance, triangle = trimesh.proximity.closest_point(scan, moved.vertices)
+            trusted = _trusted_pairs(moved.vertices, np.asarray(moved.vertex_normals), closest, distance,
+                                     scan.face_normals[triangle], scan_edge, closest, moved.vertices, settings)
+            system = sp.diags(trusted.astype(np.float64)) + stiffness * smoothing + settings.decay * sp.identity(n)
+            wanted = trusted[:, None] * (closest - vertices_mm)
+            if settings.reverse_weight > 0:
+                on_ppm, back, ppm_triangle = trimesh.proximity.closest_point(moved, scan_points)
+                pulling = np.flatnonzero(_trusted_pairs(scan_points, scan_normals, on_ppm, back,
+                                                        moved.face_normals[ppm_triangle], scan_edge, scan_points,
+                                                        on_ppm, settings))
+                corners = faces[ppm_triangle[pulling]]
+                weights = trimesh.triangles.points_to_barycentric(moved.vertices[corners], on_ppm[pulling])
+                rows = sp.csr_matrix((weights.ravel(), (np.repeat(np.arange(len(pulling)), 3), corners.ravel())),
+                                     shape=(len(pulling), n))
+                system = system + settings.reverse_weight * (rows.T @ rows)
+                wanted = wanted + settings.reverse_weight * (rows.T @ (scan_points[pulling] - rows @ vertices_mm))
+            solve = factorized(system.tocsr()[free][:, free].tocsc())
+            displacement = np.zeros((n, 3))
+            for axis in range(3):
+                displacement[free, axis] = solve(np.ascontiguousarray(wanted[free, axis]))
+            displacement *= taper[:, None]
+    size = np.linalg.norm(displacement, axis=1)
+    displacement *= np.minimum(1.0, settings.max_displacement_mm / np.maximum(size, 1e-12))[:, None]
     reference = _face_normals(vertices_mm, faces)
     halvings = 0
-    for halvings in range(0, 31):
-        moved = vertices_mm + offsets[:, None] * normals
-        folded = np.einsum("ij,ij->i", _face_normals(moved, faces), reference) <= 0.0
+    for halvings in range(0, 61):
+        folded = np.einsum("ij,ij->i", _face_normals(vertices_mm + displacement, faces), reference) <= 0.0
         if not folded.any():
             break
-        offsets[np.unique(faces[folded])] *= 0.5
+        displacement[np.unique(faces[folded])] *= 0.5
     else:
-        raise PpmError("the personal-detail layer keeps folding faces after 30 halvings; check the fit")
-    return PersonalDetail(offsets_mm=offsets, normals=normals, trusted=trusted, halvings=halvings)
+        raise PpmError("the personal-detail layer keeps folding faces after 60 halvings; check the fit")
+    return PersonalDetail(displacement_mm=displacement, trusted=trusted, halvings=halvings)
 
 
 def add_personal_detail(model, target: Target, settings: DetailSettings | None = None) -> tuple[PersonalDetail, dict]:

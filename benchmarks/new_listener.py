@@ -15,11 +15,13 @@ results/listeners/ (not committed: the head is the dataset's).
 
 Run: .venv/bin/python benchmarks/new_listener.py [--subject P143] [--seed 7] [--cores 2] [--report-only]
 Last line: JSON with frame_axis_error_deg, frame_origin_error_mm, left_fit_median_mm, right_fit_median_mm,
-ears_solved, cpu_hours, delta_qe_pp, delta_pe_deg (null where the solve has not finished).
+ears_solved, cpu_hours, delta_qe_pp, delta_pe_deg (null where the solve has not finished), the directions the two
+sets share, and each ear alone (the other ear from the dataset's set): <side>_ear_only_delta_qe_pp / _pe_deg.
 """
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import subprocess
 import sys
@@ -119,6 +121,14 @@ def report(subject: str, seed: int) -> dict:
         summary.update(delta_qe_pp=round(prediction.qe - base_prediction.qe, 3),
                        delta_pe_deg=round(prediction.pe - base_prediction.pe, 3),
                        directions_compared=int(reference.irs.shape[0]))
+        # ear by ear: the personal set's one ear, the other from the dataset's set
+        for index, side in enumerate(("left", "right")):
+            irs = reference.irs.copy()
+            irs[:, index] = personal.irs[:, index]
+            one = LocalisationModel(dataclasses.replace(reference, irs=irs), reference, [-20.0, 0.0, 20.0])
+            alone = one.predict(sensitivity)
+            summary[f"{side}_ear_only_delta_qe_pp"] = round(alone.qe - base_prediction.qe, 3)
+            summary[f"{side}_ear_only_delta_pe_deg"] = round(alone.pe - base_prediction.pe, 3)
     print(f"{subject} as a new listener: frame axis {summary['frame_axis_error_deg']:.2f} deg off the dataset's y, "
           f"origin {summary['frame_origin_error_mm']:.1f} mm off its origin; fits {summary['left_fit_median_mm']:.2f} / "
           f"{summary['right_fit_median_mm']:.2f} mm (median, left / right); NumCalc {summary['cpu_hours']:.2f} CPU h "

@@ -93,7 +93,7 @@ def test_a_listener_gets_a_both_ear_hrir_set_on_the_full_grid(tmp_path, sonicom)
     config = yaml.safe_load((work / "config" / "config.yaml").read_text())
     config["listeners"] = [{"name": "cgtub", "head": "scans/cgtub.ply"}]
     config["hrtf"].update(enabled=True, solver="embedded", embedded_threads=2, polar_step_deg=10.0,
-                          frequencies_hz={"min": 2500.0, "max": 20000.0, "step": 2500.0})
+                          frequencies_hz={"min": 1250.0, "max": 20000.0, "step": 2500.0})
     config["listener"]["comparison_sets"] = [str(sonicom / s / "hrir_mesh2hrtf_48k.sofa") for s in ("P039", "P067")]
     config["stitch"]["bands"] = config["demo"]["bands"]
     (work / "config" / "listener_ci.yaml").write_text(yaml.safe_dump(config))

@@ -270,3 +270,29 @@ def test_directional_levels_drop_a_per_frequency_gain_and_keep_what_differs_betw
     louder_first[0] *= 2.0  # +6.02 dB in one direction moves it by 6.02 * (1 - 1/50) against the mean
     np.testing.assert_allclose(directional_levels_db(louder_first)[0] - directional_levels_db(spectra)[0],
                                20 * np.log10(2.0) * (1 - 1 / 50), atol=1e-9)
+
+
+def test_sets_on_different_grids_are_compared_on_the_directions_they_share(sonicom):
+    """A denser set (SONICOM P143's directions below 60 deg elevation turned by 1 deg in azimuth, plus every
+    direction again 2.5 deg up and 2.5 deg round, with other responses) shares every one of the coarse set's directions within 2 deg: its nearest responses take the coarse set's
+    directions, and the model on the shared grid gives the coarse set's own QE heard through itself."""
+    import dataclasses
+
+    from amt_bridge.hrtf_set import on_common_directions
+
+    coarse = read_hrtf_set(sonicom / "P143" / "hrir_mesh2hrtf_48k.sofa")
+    away_from_poles = np.abs(coarse.elevation_deg) < 60.0  # at a pole every azimuth is one direction
+    coarse = dataclasses.replace(coarse, irs=coarse.irs[away_from_poles], azimuth_deg=coarse.azimuth_deg[away_from_poles],
+                                 elevation_deg=coarse.elevation_deg[away_from_poles])
+    dense = dataclasses.replace(coarse, irs=np.concatenate([coarse.irs, coarse.irs[::-1]]),
+                                azimuth_deg=np.r_[coarse.azimuth_deg + 1.0, coarse.azimuth_deg + 2.5],
+                                elevation_deg=np.r_[coarse.elevation_deg, coarse.elevation_deg + 2.5])
+    first, second = on_common_directions(dense, coarse)
+    assert first.irs.shape == coarse.irs.shape
+    np.testing.assert_array_equal(first.irs, coarse.irs)  # the 1-deg neighbours, not the others
+    np.testing.assert_array_equal(first.azimuth_deg, second.azimuth_deg)
+    model = LocalisationModel(coarse, coarse, [0.0])
+    sensitivity = model.calibrate(8.0)
+    assert LocalisationModel(first, second, [0.0]).predict(sensitivity).qe == pytest.approx(8.0, abs=0.05)
+    with pytest.raises(AmtBridgeError, match="share only"):
+        on_common_directions(dataclasses.replace(coarse, azimuth_deg=coarse.azimuth_deg + 1.0), coarse, 0.1)

@@ -40,7 +40,8 @@ def test_dry_run_with_hrtfs_plans_one_numcalc_job_per_ear_and_frequency_of_the_s
 
 
 def test_dry_run_of_the_evaluation_gives_each_control_only_to_its_listed_subjects(tmp_path, sonicom):
-    """evaluation.own_pinna_subjects / default_ppm_subjects: the controls' heads are planned only for those."""
+    """evaluation.own_pinna_subjects / default_ppm_subjects / ppm_detail_subjects / hard_subjects: the controls'
+    heads are planned only for those, the *_hard ones from one defective scan per subject."""
     import re
 
     import yaml
@@ -48,15 +49,20 @@ def test_dry_run_of_the_evaluation_gives_each_control_only_to_its_listed_subject
     work = _copy_workflow(tmp_path)
     config = yaml.safe_load((work / "config" / "config.yaml").read_text())
     config["data_root"], config["hrtf"]["enabled"] = str(sonicom), True
-    config["evaluation"].update(conditions=["ppm", "own_pinna", "default_ppm"], folder="evaluation/x",
-                                own_pinna_subjects=["P143"], default_ppm_subjects=["P039"])
+    config["evaluation"].update(conditions=["ppm", "own_pinna", "default_ppm", "ppm_detail", "ppm_hard",
+                                            "ppm_detail_hard", "nricp_hard"], folder="evaluation/x",
+                                own_pinna_subjects=["P143"], default_ppm_subjects=["P039"],
+                                ppm_detail_subjects=["P067"], hard_subjects=["P143"])
     (work / "config" / "test_controls.yaml").write_text(yaml.safe_dump(config))
     done = _run(["evaluation_report", "-n", "--cores", "2", "--configfile", "config/test_controls.yaml"], work)
     assert done.returncode == 0, done.stderr[-3000:]
     text = done.stdout + done.stderr
     planned = set(re.findall(r"results/(P\d+)/hrtf/(\w+)/HRIR\.sofa", text))
     assert planned == {("P039", "ppm"), ("P067", "ppm"), ("P143", "ppm"), ("P143", "own_pinna"),
-                       ("P039", "default_ppm")}
+                       ("P039", "default_ppm"), ("P067", "ppm_detail"), ("P143", "ppm_hard"),
+                       ("P143", "ppm_detail_hard"), ("P143", "nricp_hard")}
+    assert set(re.findall(r"results/(P\d+)/controls/hard/scan\.ply", text)) == {"P143"}
+    assert "evaluation/x/hard_scans" in text
 
 
 def test_config_errors_stop_before_any_work(tmp_path):

@@ -416,6 +416,12 @@ def copy_hard_scans(scans: dict[str, str], folder: str | os.PathLike) -> list[Pa
         with atomic_path(target) as tmp:
             shutil.copyfile(source, tmp)
         written.append(target)
+    lines = ["# The fixed defective scans of the *_hard conditions", "",
+             "Each subject's clean left crop with the defects of config `evaluation.hard_scan` (ppm/align/defects.py; "
+             "mm, head frame), drawn once with the subject's own seed: the scan the conditions ppm_hard, "
+             "ppm_detail_hard and nricp_hard were fitted to. Their distances are measured against the clean crop.", ""]
+    lines += [f"- `{path.name}`" for path in written] or ["No *_hard condition in this evaluation."]
+    written.append(write_text_atomic(folder / "README.md", "\n".join(lines) + "\n"))
     return written
 
 

@@ -95,6 +95,10 @@ def report(subject: str, seed: int) -> dict:
     for side in ("left", "right"):
         fit = json.loads((base / "align" / side / "summary.json").read_text())
         summary[f"{side}_fit_median_mm"] = fit["distance_target_to_ppm"]["median_mm"]
+    validation = json.loads((base / "remesh" / "validation.json").read_text())
+    summary.update(head_triangles=validation["n_triangles"],
+                   left_pinna_edge_median_mm=round(validation["pinna_edge_mm"]["median"], 3),
+                   right_pinna_edge_median_mm=round(validation["right_pinna_edge_mm"]["median"], 3))
     cpu, ears = 0.0, set()
     for stored in sorted((KEPT / "steps").rglob("step_*.npz")):
         with np.load(stored) as kept:

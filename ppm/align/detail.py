@@ -1,9 +1,9 @@
 """The personal-detail layer: what a scan shows of an ear that the PPM's 144 parameters cannot take.
 
-On top of a PPM fit, each vertex of the posed PPM moves along its own normal (same vertices, same faces) towards
-the scan, by a smooth, bounded offset field that only trusted scan evidence drives: surface that is there, near,
-facing the same way, away from the scan's open edges (the crop's edge, the rims of holes) and in agreement with
-its neighbours (not a spike or an outlier sheet). Where the scan says nothing the offsets fall to zero and the
+On top of a PPM fit, every vertex of the posed PPM moves (same vertices, same faces) towards the scan, by a smooth,
+bounded displacement field that only trusted scan evidence drives: surface that is there, near, facing the same
+way, over the scan rather than beyond its open edges (the crop's edge, the rims of holes) and in agreement with its
+neighbours (not a spike or an outlier sheet). Where the scan says nothing the field stays smooth and fades, so the
 PPM's shape stays; the rim that the stitch joins to the head stays where the PPM put it; no face folds.
 
 Millimetres, project frame (x front, y left, z up); the settings and their meaning are in
@@ -26,6 +26,7 @@ from ..errors import PpmError
 from ..model import DETAIL_KEY  # noqa: F401  (the shape key that holds the layer in a .blend)
 from .report import boundary_samples
 from .target import Target, surface_without_outliers
+
 
 @dataclasses.dataclass(frozen=True)
 class DetailSettings:
@@ -131,6 +132,22 @@ def _face_normals(vertices_mm: np.ndarray, faces: np.ndarray) -> np.ndarray:
     return normals / np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-12)
 
 
+def closest_within(mesh: trimesh.Trimesh, points_mm: np.ndarray, reach_mm: float
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Closest points on ``mesh`` of the ``points_mm`` that may lie within ``reach_mm`` of it (closest point,
+    distance, triangle); the others keep their own position, an infinite distance and triangle 0. A point farther
+    than ``reach_mm`` plus the longest edge from every vertex lies beyond ``reach_mm`` of the surface, and trimesh's
+    exact query is slow for far points, so they are left out of it."""
+    points_mm = np.asarray(points_mm, dtype=np.float64)
+    closest, distance = points_mm.copy(), np.full(len(points_mm), np.inf)
+    triangle = np.zeros(len(points_mm), dtype=np.int64)
+    longest = float(mesh.edges_unique_length.max()) if len(mesh.faces) else 0.0
+    near = np.isfinite(cKDTree(mesh.vertices).query(points_mm, distance_upper_bound=reach_mm + longest)[0])
+    if near.any():
+        closest[near], distance[near], triangle[near] = trimesh.proximity.closest_point(mesh, points_mm[near])
+    return closest, distance, triangle
+
+
 def neighbours_agree(points_mm: np.ndarray, offsets_mm: np.ndarray, radius_mm: float, tolerance_mm: float) -> np.ndarray:
     """Whether each point's offset lies within ``tolerance_mm`` of the median offset of the points within
     ``radius_mm`` of it (a spike or an outlier sheet stands out of its neighbourhood)."""
@@ -196,13 +213,13 @@ def personal_detail(vertices_mm: np.ndarray, faces: np.ndarray, target: Target,
     for stiffness in settings.stiffness_mm2:
         for _ in range(max(1, settings.iterations_per_stiffness)):
             moved = trimesh.Trimesh(vertices_mm + displacement, faces, process=False)
-            closest, distance, triangle = trimesh.proximity.closest_point(scan, moved.vertices)
+            closest, distance, triangle = closest_within(scan, moved.vertices, settings.reach_mm)
             trusted = _trusted_pairs(moved.vertices, np.asarray(moved.vertex_normals), closest, distance,
                                      scan.face_normals[triangle], scan_edge, closest, moved.vertices, settings)
             system = sp.diags(trusted.astype(np.float64)) + stiffness * smoothing + settings.decay * sp.identity(n)
             wanted = trusted[:, None] * (closest - vertices_mm)
             if settings.reverse_weight > 0:
-                on_ppm, back, ppm_triangle = trimesh.proximity.closest_point(moved, scan_points)
+                on_ppm, back, ppm_triangle = closest_within(moved, scan_points, settings.reach_mm)
                 pulling = np.flatnonzero(_trusted_pairs(scan_points, scan_normals, on_ppm, back,
                                                         moved.face_normals[ppm_triangle], scan_edge, scan_points,
                                                         on_ppm, settings))

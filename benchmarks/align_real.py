@@ -28,7 +28,7 @@ from ppm.model import PinnaModel
 from ppm.parameters import parameter_specs
 from ppm.template import default_template_dir
 from ppm.template.build import build_template_folder
-from ppm.template.register import nonrigid_register, rigid_align
+from ppm.template.register import register_onto
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -46,9 +46,7 @@ def loo_template(data_root: Path, subject: str, templates: Path, cache: Path) ->
 def nricp_baseline(template: trimesh.Trimesh, target) -> tuple[dict, float]:
     """Rigid ICP then non-rigid ICP (Amberg) of the template onto the target points."""
     start = time.perf_counter()
-    matrix = rigid_align(template.vertices, target.mesh)
-    moved = trimesh.Trimesh(trimesh.transform_points(template.vertices, matrix), template.faces, process=False)
-    registered = nonrigid_register(moved, target.mesh)
+    registered = register_onto(template, target.mesh)
     seconds = time.perf_counter() - start
     return distance_summary(one_sided_distances_mm(target, registered, template.faces)), seconds
 

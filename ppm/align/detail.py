@@ -23,7 +23,7 @@ from scipy.sparse.csgraph import dijkstra
 from scipy.spatial import cKDTree
 
 from ..errors import PpmError
-from ..model import DETAIL_KEY  # noqa: F401  (the shape key that holds the layer in a .blend)
+from ..model import DETAIL_KEY  # the shape key that holds the layer in a .blend
 from .report import boundary_samples
 from .target import Target, surface_without_outliers
 

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import trimesh
 
-from ..template.register import NRICP_STEPS, nonrigid_register, rigid_align
+from ..template.register import NRICP_STEPS, register_onto
 
 #: The schedule ending at stiffness 0.007 (three of NRICP_STEPS' four stages): the smallest distance to the clean
 #: truth on the hardest defective scans of P039, P067 and P143 among the five tried (benchmarks/align_defects.py).
@@ -17,6 +17,4 @@ NRICP_SCHEDULE = NRICP_STEPS[:3]
 def nricp_fit(template: trimesh.Trimesh, scan: trimesh.Trimesh,
               steps: tuple[tuple[float, float, float, int], ...] = NRICP_SCHEDULE) -> np.ndarray:
     """(n, 3) vertices (mm) of ``template`` moved rigidly, then non-rigidly onto the surface ``scan``."""
-    matrix = rigid_align(template.vertices, scan)
-    moved = trimesh.Trimesh(trimesh.transform_points(template.vertices, matrix), template.faces, process=False)
-    return nonrigid_register(moved, scan, steps)
+    return register_onto(template, scan, steps)

@@ -21,7 +21,7 @@ from ..errors import PpmError
 from ..landmarks import LANDMARKS_NAME
 from ..mesh_io import load_left_pinna
 from ..progress import Progress
-from .register import nonrigid_register, procrustes_mean, rigid_align
+from .register import procrustes_mean, register_onto
 from .segment import crop_to_region, pinna_region
 
 log = logging.getLogger(__name__)
@@ -98,9 +98,7 @@ def register_to_scans(topology: trimesh.Trimesh, scans: list[EarScan],
     for scan in scans:
         start = time.perf_counter()
         target = load_left_pinna(scan.path, scan.side)
-        matrix = rigid_align(topology.vertices, target)
-        moved = trimesh.Trimesh(trimesh.transform_points(topology.vertices, matrix), topology.faces, process=False)
-        shapes.append(nonrigid_register(moved, target))
+        shapes.append(register_onto(topology, target))
         residual = trimesh.proximity.closest_point(target, shapes[-1])[1]
         stats.append({"scan": scan.label, "median_mm": round(float(np.median(residual)), 3),
                       "p95_mm": round(float(np.percentile(residual, 95)), 3),

@@ -23,6 +23,15 @@ def rigid_align(source_mm: np.ndarray, target: trimesh.Trimesh, iterations: int 
     return matrix
 
 
+def register_onto(source: trimesh.Trimesh, target: trimesh.Trimesh,
+                  steps: tuple[tuple[float, float, float, int], ...] = NRICP_STEPS) -> np.ndarray:
+    """Vertices (n, 3) of `source` moved rigidly (:func:`rigid_align`), then non-rigidly with `steps`
+    (:func:`nonrigid_register`) onto the surface `target` (same vertex order, mm)."""
+    matrix = rigid_align(source.vertices, target)
+    moved = trimesh.Trimesh(trimesh.transform_points(source.vertices, matrix), source.faces, process=False)
+    return nonrigid_register(moved, target, steps)
+
+
 def nonrigid_register(source: trimesh.Trimesh, target: trimesh.Trimesh,
                       steps: tuple[tuple[float, float, float, int], ...] = NRICP_STEPS) -> np.ndarray:
     """Vertices (n, 3) of `source` deformed onto `target` by non-rigid ICP (same vertex order, mm), with the

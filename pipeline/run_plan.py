@@ -516,6 +516,12 @@ class RunPlan:
         return (f"{base}/ear_scan_{side}.ply" if side in self.listeners[listener].ear_scans
                 else f"{base}/pinna_{side}_crop.ply")
 
+    def listener_pinna(self, listener: str, side: str) -> str:
+        """The pinna stitched onto a listener's head on ``side`` (left-ear frame, mm): the PPM fit, with its
+        personal-detail layer when config ``listener.personal_detail`` is on."""
+        step = "detail" if (self.config.get("listener") or {}).get("personal_detail") else "align"
+        return f"results/listeners/{listener}/{step}/{side}/aligned_pinna.ply"
+
     def listener_template(self) -> str:
         """The template pinna both ears of every listener are fitted with."""
         from listener.errors import ListenerError  # noqa: PLC0415

@@ -90,12 +90,21 @@ def plot_planes(hrtf_sofa: str | os.PathLike, out_png: str | os.PathLike, title:
     plt.close(figure)
 
 
+def _fit_distances(summary_json: Path) -> dict:
+    """Scan -> pinna distances (median_mm, p95_mm, ...) of a fit's summary: an alignment's
+    (``distance_target_to_ppm``) or a personal-detail layer's (``ppm_detail``)."""
+    summary = json.loads(summary_json.read_text())
+    return summary["ppm_detail"] if "ppm_detail" in summary else summary["distance_target_to_ppm"]
+
+
 def write_listener_report(name: str, base: str | os.PathLike, localisation: dict, planes_png: str | os.PathLike,
-                          out_html: str | os.PathLike) -> None:
-    """The listener's HTML page (beside ``base``'s results, linked relatively)."""
+                          out_html: str | os.PathLike, personal_detail: bool = False) -> None:
+    """The listener's HTML page (beside ``base``'s results, linked relatively); ``personal_detail``: the fits carry
+    the personal-detail layer (``base/detail/<side>``), whose scan -> pinna distances the page gives."""
     base, out_html = Path(base), Path(out_html)
     frame = json.loads((base / "prepared" / "frame.json").read_text())
-    fits = {side: json.loads((base / "align" / side / "summary.json").read_text()) for side in ("left", "right")}
+    fit_dir = "detail" if personal_detail else "align"
+    fits = {side: _fit_distances(base / fit_dir / side / "summary.json") for side in ("left", "right")}
     remesh = json.loads((base / "remesh" / "validation.json").read_text())
 
     def rel(path: Path) -> str:
@@ -109,12 +118,12 @@ def write_listener_report(name: str, base: str | os.PathLike, localisation: dict
 
     rows = "".join(set_row(set_name, row) for set_name, row in localisation["sets"].items())
     fit_rows = "".join(
-        f"<tr><td>{side}</td><td>{fit['distance_target_to_ppm']['median_mm']:.2f}</td>"
-        f"<td>{fit['distance_target_to_ppm']['p95_mm']:.2f}</td>"
-        f"<td><a href='{rel(base / 'align' / side / 'aligned_pinna.blend')}'>aligned_pinna.blend</a></td></tr>"
+        f"<tr><td>{side}</td><td>{fit['median_mm']:.2f}</td><td>{fit['p95_mm']:.2f}</td>"
+        f"<td><a href='{rel(base / fit_dir / side / 'aligned_pinna.blend')}'>aligned_pinna.blend</a></td></tr>"
         for side, fit in fits.items())
-    pictures = "".join(f"<figure><img src='{rel(base / 'align' / side / 'distance_map.png')}' width='420'>"
-                       f"<figcaption>{side} ear: scan to fitted PPM (mm)</figcaption></figure>" for side in fits)
+    fitted = "fitted PPM with its personal detail" if personal_detail else "fitted PPM"
+    pictures = "".join(f"<figure><img src='{rel(base / fit_dir / side / 'distance_map.png')}' width='420'>"
+                       f"<figcaption>{side} ear: scan to {fitted} (mm)</figcaption></figure>" for side in fits)
     page = f"""<!doctype html><html><head><meta charset="utf-8"><title>{html.escape(name)}: personal HRTF</title>
 <style>body{{font-family:sans-serif;max-width:1100px;margin:2em auto}}td,th{{padding:2px 10px;text-align:right}}
 figure{{display:inline-block;margin:0 1em 1em 0}}</style></head><body>
@@ -124,7 +133,7 @@ figure{{display:inline-block;margin:0 1em 1em 0}}</style></head><body>
 f", turned by {frame['rotation_deg']:.1f}°"}. Ear canals at {frame['left_canal_mm']} and {frame['right_canal_mm']} mm,
 nose tip at {frame['nose_tip_mm']} mm (x front, y left, z up; origin between the canals).
 Repairs: {html.escape('; '.join(frame['repairs']) or 'none')}.</p>
-<h2>Both ears fitted by the PPM</h2>
+<h2>Both ears fitted by the PPM{' with the personal-detail layer (shape key Personal_detail)' if personal_detail else ''}</h2>
 <table><tr><th>ear</th><th>median (mm)</th><th>p95 (mm)</th><th>for touch-up</th></tr>{fit_rows}</table>
 {pictures}
 <p>Remeshed head: {remesh['n_triangles']:,} triangles, pinna edges {remesh['pinna_edge_mm']['median']:.2f} mm (left)

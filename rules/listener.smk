@@ -95,11 +95,35 @@ rule listener_align:
         "../workflow/scripts/align_ppm.py"
 
 
+# config listener.personal_detail: the personal-detail layer on a fit, towards the trusted parts of its ear scan
+rule listener_detail:
+    input:
+        target="results/listeners/{listener}/target/{side}/pinna_target.ply",
+        blend="results/listeners/{listener}/align/{side}/aligned_pinna.blend",
+    output:
+        aligned="results/listeners/{listener}/detail/{side}/aligned_pinna.ply",
+        blend="results/listeners/{listener}/detail/{side}/aligned_pinna.blend",
+        summary="results/listeners/{listener}/detail/{side}/summary.json",
+        picture="results/listeners/{listener}/detail/{side}/distance_map.png",
+    log:
+        "logs/listener/detail/{listener}_{side}.log",
+    benchmark:
+        "benchmarks/timings/listener/detail/{listener}_{side}.tsv"
+    params:
+        title=lambda wc: f"{wc.listener} {wc.side} ear",
+    threads: 1
+    resources:
+        mem_mb=measured_mem_mb("personal_detail"),
+        runtime=measured_runtime("personal_detail"),
+    script:
+        "../workflow/scripts/personal_detail.py"
+
+
 rule listener_stitch:
     input:
         head="results/listeners/{listener}/prepared/head.ply",
-        pinna="results/listeners/{listener}/align/left/aligned_pinna.ply",
-        right_pinna="results/listeners/{listener}/align/right/aligned_pinna.ply",
+        pinna=lambda wc: RUN.listener_pinna(wc.listener, "left"),
+        right_pinna=lambda wc: RUN.listener_pinna(wc.listener, "right"),
     output:
         mesh="results/listeners/{listener}/stitch/stitched_head.ply",
         report="results/listeners/{listener}/stitch/stitch.json",
@@ -120,8 +144,8 @@ rule listener_stitch:
 rule listener_remesh:
     input:
         mesh="results/listeners/{listener}/stitch/stitched_head.ply",
-        pinna="results/listeners/{listener}/align/left/aligned_pinna.ply",
-        right_pinna="results/listeners/{listener}/align/right/aligned_pinna.ply",
+        pinna=lambda wc: RUN.listener_pinna(wc.listener, "left"),
+        right_pinna=lambda wc: RUN.listener_pinna(wc.listener, "right"),
     output:
         mesh="results/listeners/{listener}/remesh/head.ply",
         report="results/listeners/{listener}/remesh/validation.json",
@@ -142,7 +166,8 @@ rule listener_remesh:
 rule listener_report:
     input:
         frame="results/listeners/{listener}/prepared/frame.json",
-        fits=expand("results/listeners/{{listener}}/align/{side}/summary.json", side=["left", "right"]),
+        fits=lambda wc: [RUN.listener_pinna(wc.listener, side).replace("aligned_pinna.ply", "summary.json")
+                         for side in ("left", "right")],
         remesh="results/listeners/{listener}/remesh/validation.json",
         hrtf="results/listeners/{listener}/hrtf/personal/HRTF.sofa",
         others=lambda wc: list(RUN.listener_comparisons(wc.listener).values()),
@@ -156,6 +181,7 @@ rule listener_report:
         "benchmarks/timings/listener/report/{listener}.tsv"
     params:
         others=lambda wc: RUN.listener_comparisons(wc.listener),
+        personal_detail=bool(config["listener"].get("personal_detail")),
     threads: 1
     resources:
         mem_mb=measured_mem_mb("localisation"),

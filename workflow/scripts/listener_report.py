@@ -17,4 +17,5 @@ localisation = listener_localisation(snakemake.input.hrtf, snakemake.params.othe
 write_text_atomic(snakemake.output.localisation, json.dumps(localisation, indent=1) + "\n")  # noqa: F821
 plot_planes(snakemake.input.hrtf, snakemake.output.planes, f"{name}: personal HRTF")  # noqa: F821
 write_listener_report(name, Path(snakemake.input.frame).parent.parent, localisation,  # noqa: F821
-                      snakemake.output.planes, snakemake.output.html)  # noqa: F821
+                      snakemake.output.planes, snakemake.output.html,  # noqa: F821
+                      personal_detail=bool(snakemake.params.personal_detail))  # noqa: F821

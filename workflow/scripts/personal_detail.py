@@ -1,5 +1,5 @@
-"""Rule personal_detail: the personal-detail layer (ppm.align.detail) on a subject's PPM fit, towards the trusted
-parts of its prepared scan: the posed PPM with the layer (PLY, mm), the .blend with the layer as the shape key
+"""Rules personal_detail and listener_detail: the personal-detail layer (ppm.align.detail) on a subject's (a
+listener's ear's) PPM fit, towards the trusted parts of its prepared scan: the posed PPM with the layer (PLY, mm), the .blend with the layer as the shape key
 Personal_detail (weight 1), a summary and a distance map."""
 import sys
 from pathlib import Path
@@ -29,5 +29,6 @@ model.export(out.aligned)
 model.save_blend(out.blend)
 distance = one_sided_distances_mm(target, model.evaluate(), model.faces)
 render_distance_map(target.points_mm, None, distance, out.picture,
-                    f"{snakemake.wildcards.subject}: scan -> PPM with its personal detail")  # noqa: F821
+                    f"{snakemake.params.get('title') or snakemake.wildcards.subject}: "  # noqa: F821
+                   "scan -> PPM with its personal detail")
 write_text_atomic(out.summary, json.dumps(summary, indent=2) + "\n")

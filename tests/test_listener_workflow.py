@@ -1,6 +1,6 @@
 """A new listener through the workflow, really run: a head scan (CGTUB's head, turned at random and written in cm,
 as a user's scanner might export it) and a separate scan of its left ear in, the frame found, the ear scan
-registered onto the head, both ears fitted by the PPM, both fits stitched in and the head remeshed at both pinnae,
+registered onto the head, both ears fitted by the PPM with the personal-detail layer, both fits stitched in and the head remeshed at both pinnae,
 then, CI-sized, to the both-ear HRIRs and the report; a bad listener table stops the run before any work."""
 from __future__ import annotations
 
@@ -62,6 +62,7 @@ def test_a_listener_gets_a_both_ear_hrir_set_on_the_full_grid(tmp_path, sonicom)
     config["hrtf"].update(enabled=True, solver="embedded", embedded_threads=2, polar_step_deg=10.0,
                           frequencies_hz={"min": 1250.0, "max": 20000.0, "step": 2500.0})
     config["listener"]["comparison_sets"] = [str(sonicom / s / "hrir_mesh2hrtf_48k.sofa") for s in ("P039", "P067")]
+    config["listener"]["personal_detail"] = True
     config["stitch"]["bands"] = config["demo"]["bands"]
     (work / "config" / "listener_ci.yaml").write_text(yaml.safe_dump(config))
     done = _run(["--cores", "2", "--configfile", "config/listener_ci.yaml"], work)
@@ -76,6 +77,12 @@ def test_a_listener_gets_a_both_ear_hrir_set_on_the_full_grid(tmp_path, sonicom)
         fit = json.loads((base / "align" / side / "summary.json").read_text())
         assert fit["distance_target_to_ppm"]["median_mm"] < 0.5  # the packaged template fitted to CGTUB's ears
         assert (base / "align" / side / "aligned_pinna.blend").stat().st_size > 0
+        # listener.personal_detail: the layer on each fit draws it onto its scan, and the stitch takes it
+        detail = json.loads((base / "detail" / side / "summary.json").read_text())
+        assert detail["ppm"]["median_mm"] == pytest.approx(fit["distance_target_to_ppm"]["median_mm"], abs=1e-3)
+        assert detail["ppm_detail"]["median_mm"] < 0.6 * detail["ppm"]["median_mm"], detail
+        assert detail["shape_key_mismatch_mm"] < 0.01
+    assert "detail/left/aligned_pinna.ply" in (base / "stitch" / "stitch.json").read_text()
     remeshed = trimesh.load(base / "remesh" / "head.ply", process=False)
     assert remeshed.is_watertight
     # both ear canals of the remeshed head lie on the interaural axis the frame put them on (within 3 mm)
@@ -94,4 +101,4 @@ def test_a_listener_gets_a_both_ear_hrir_set_on_the_full_grid(tmp_path, sonicom)
     assert set(localisation["sets"]) == {"own", "P039", "P067"}
     assert all(np.isfinite(row["qe_percent"]) for row in localisation["sets"].values())
     page = (work / "results/listeners/cgtub/report.html").read_text()
-    assert "What personalising buys" in page and "hrtf_planes.png" in page and "aligned_pinna.blend" in page
+    assert "What personalising buys" in page and "hrtf_planes.png" in page and "detail/left/aligned_pinna.blend" in page

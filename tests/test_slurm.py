@@ -38,6 +38,7 @@ def _packages_installable() -> str | None:
 
 
 @pytest.mark.slow
+@pytest.mark.alone
 def test_the_demo_runs_through_a_real_slurm_controller(tmp_path):
     reason = _packages_installable()
     if reason:

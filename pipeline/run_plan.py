@@ -516,10 +516,16 @@ class RunPlan:
         return (f"{base}/ear_scan_{side}.ply" if side in self.listeners[listener].ear_scans
                 else f"{base}/pinna_{side}_crop.ply")
 
+    @property
+    def listener_personal_detail(self) -> bool:
+        """Whether a listener's fits get their personal-detail layer before the stitch (config
+        ``listener.personal_detail``)."""
+        return bool((self.config.get("listener") or {}).get("personal_detail"))
+
     def listener_pinna(self, listener: str, side: str) -> str:
         """The pinna stitched onto a listener's head on ``side`` (left-ear frame, mm): the PPM fit, with its
-        personal-detail layer when config ``listener.personal_detail`` is on."""
-        step = "detail" if (self.config.get("listener") or {}).get("personal_detail") else "align"
+        personal-detail layer when :attr:`listener_personal_detail` is on."""
+        step = "detail" if self.listener_personal_detail else "align"
         return f"results/listeners/{listener}/{step}/{side}/aligned_pinna.ply"
 
     def listener_template(self) -> str:

@@ -253,8 +253,7 @@ class PinnaModel:
             return offset, np.linalg.norm(miss, axis=1)
 
         offset, miss = newton(zero.copy())
-        faces = np.asarray(self.faces)
-        edges = np.unique(np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), axis=1), axis=0)
+        edges = trimesh.Trimesh(self.template_vertices_mm, self.faces, process=False).edges_unique
         for _ in range(3):
             short = miss > 1e-3
             if not short.any():

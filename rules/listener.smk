@@ -181,7 +181,7 @@ rule listener_report:
         "benchmarks/timings/listener/report/{listener}.tsv"
     params:
         others=lambda wc: RUN.listener_comparisons(wc.listener),
-        personal_detail=bool(config["listener"].get("personal_detail")),
+        personal_detail=RUN.listener_personal_detail,
     threads: 1
     resources:
         mem_mb=measured_mem_mb("localisation"),

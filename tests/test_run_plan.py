@@ -163,9 +163,11 @@ def test_a_listener_is_solved_as_its_own_subject_on_the_full_grid(in_root, tmp_p
                                                 "P039": str(other)}
     assert run.listener_template().endswith("template_left.ply")
     assert run.listener_pinna("anna", "right") == "results/listeners/anna/align/right/aligned_pinna.ply"
+    assert not run.listener_personal_detail
     detailed = RunPlan(_config(listeners=[{"name": "anna", "head": str(scan)}],
                                listener={"personal_detail": True, "comparison_sets": []}))
     assert detailed.listener_pinna("anna", "right") == "results/listeners/anna/detail/right/aligned_pinna.ply"
+    assert detailed.listener_personal_detail
     with pytest.raises(RunConfigError, match="given twice"):
         RunPlan(_config(listeners=[{"name": "anna", "head": str(scan)}] * 2))
     with pytest.raises(RunConfigError, match="missing or empty"):

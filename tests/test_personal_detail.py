@@ -78,6 +78,9 @@ def test_the_layer_takes_a_detail_from_a_defective_scan_and_nothing_else(posed):
     np.testing.assert_array_equal(detail.displacement_mm[rim_vertices(faces)], 0.0)
     before_normals, after_normals = (trimesh.Trimesh(v, faces, process=False).face_normals for v in (vertices, moved))
     assert np.einsum("ij,ij->i", before_normals, after_normals).min() > 0.0
+    # nor creases against a neighbour beyond the stitch's fold test (120 deg) where the PPM did not
+    creases = [np.degrees(trimesh.Trimesh(v, faces, process=False).face_adjacency_angles) for v in (vertices, moved)]
+    assert np.all(creases[1] <= np.maximum(120.0, creases[0]) + 1e-6)
     assert detail.summary()["displacement_max_mm"] == pytest.approx(detail.size_mm.max(), abs=1e-4)
 
 

@@ -215,3 +215,9 @@ def test_a_crumple_of_folded_triangles_is_cut_out_and_filled():
     far = np.linalg.norm(sphere.triangles_center - spot, axis=1) > 10.0
     kept = {tuple(np.round(t.ravel(), 9)) for t in filled.triangles}
     assert all(tuple(np.round(t.ravel(), 9)) in kept for t in sphere.triangles[far])
+    # the remesh's closing repair (folds, slivers, self-intersections, again while a fold is left) leaves none
+    from stitching.pipeline import repair_folds_and_slivers
+
+    repaired = repair_folds_and_slivers(crumpled)
+    report = validate_head(repaired)
+    assert report["folded_faces"] == 0 and report["sliver_faces"] == 0 and report["self_intersecting_faces"] == 0

@@ -44,6 +44,7 @@ class DetailSettings:
     reverse_weight: float
     rim_taper_mm: float
     max_displacement_mm: float
+    crease_limit_deg: float
 
     @classmethod
     def packaged(cls, **overrides) -> "DetailSettings":
@@ -192,7 +193,8 @@ def personal_detail(vertices_mm: np.ndarray, faces: np.ndarray, target: Target,
 
     c_i the closest scan point of vertex i, B_j the barycentric row of scan point p_j's closest point on the
     displaced PPM (so that the scan also pulls the PPM into hollows no vertex maps to), L the Laplacian of
-    :func:`laplacian`; the rim is held. Then U is bounded and halved around any folded face until none is."""
+    :func:`laplacian`; the rim is held. Then U is bounded and halved around any folded face (turned against the PPM's,
+    or creased against a neighbour beyond ``crease_limit_deg`` and the PPM's own crease there) until none is."""
     from scipy.sparse.linalg import factorized  # noqa: PLC0415
 
     settings = settings or DetailSettings.packaged()
@@ -237,9 +239,15 @@ def personal_detail(vertices_mm: np.ndarray, faces: np.ndarray, target: Target,
     size = np.linalg.norm(displacement, axis=1)
     displacement *= np.minimum(1.0, settings.max_displacement_mm / np.maximum(size, 1e-12))[:, None]
     reference = _face_normals(vertices_mm, faces)
+    pairs = trimesh.Trimesh(vertices_mm, faces, process=False).face_adjacency
+    crease_cos = np.minimum(np.cos(np.deg2rad(settings.crease_limit_deg)),
+                            np.einsum("ij,ij->i", reference[pairs[:, 0]], reference[pairs[:, 1]])) - 1e-9
     halvings = 0
     for halvings in range(0, 61):
-        folded = np.einsum("ij,ij->i", _face_normals(vertices_mm + displacement, faces), reference) <= 0.0
+        normals = _face_normals(vertices_mm + displacement, faces)
+        folded = np.einsum("ij,ij->i", normals, reference) <= 0.0
+        creased = np.einsum("ij,ij->i", normals[pairs[:, 0]], normals[pairs[:, 1]]) < crease_cos
+        folded[pairs[creased].ravel()] = True
         if not folded.any():
             break
         displacement[np.unique(faces[folded])] *= 0.5

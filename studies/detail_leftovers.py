@@ -27,18 +27,12 @@ sys.path.insert(0, str(ROOT))
 FAR_MM = 1.0
 
 
-def _nearest(mesh, points_mm: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Closest points, distances (mm) and triangles of ``points_mm`` on ``mesh``."""
-    import trimesh  # noqa: PLC0415
-
-    return trimesh.proximity.closest_point(mesh, points_mm)
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--subject", default="P067")
     parser.add_argument("--evaluation", type=Path, default=ROOT / "evaluation" / "sonicom")
-    parser.add_argument("--target", type=Path, help="the scan target (default results/<subject>/target/pinna_target.ply)")
+    parser.add_argument("--target", type=Path,
+                        help="the scan target (default results/<subject>/target/pinna_target.ply)")
     args = parser.parse_args()
     import trimesh  # noqa: PLC0415
 
@@ -64,13 +58,13 @@ def main() -> None:
     ppm = trimesh.load(heads["ppm"], process=False, force="mesh")
     detailed = trimesh.load(heads["ppm_detail"], process=False, force="mesh")
 
-    _, distance, triangle = _nearest(detailed, points)
+    _, distance, triangle = trimesh.proximity.closest_point(detailed, points)
     far = distance > FAR_MM
     regions = label_points(points, landmarks)
     by_region = {str(r): int(n) for r, n in zip(*np.unique(regions[far], return_counts=True))}
     limit = np.cos(np.deg2rad(DetailSettings.packaged().normal_agreement_deg))
     fails_normal = np.einsum("ij,ij->i", detailed.face_normals[triangle[far]], normals[far]) < limit
-    on_ppm, _, _ = _nearest(ppm, points[far])
+    on_ppm = trimesh.proximity.closest_point(ppm, points[far])[0]
     along = np.einsum("ij,ij->i", on_ppm - points[far], normals[far])  # + the PPM in front of the scan
     medial = normals[far][:, 1] < -0.3
     lateral = normals[far][:, 1] > 0.3

@@ -22,7 +22,7 @@ from ppm.atomic import write_text_atomic
 from ppm.mesh_io import write_mesh
 
 from .errors import StitchError
-from .remesh import Band, remesh_graded, remove_slivers
+from .remesh import Band, folded_faces, remesh_graded, remove_slivers
 
 log = logging.getLogger(__name__)
 
@@ -87,6 +87,10 @@ def write_band_head(head_path: str | os.PathLike, pinna_path: str | os.PathLike,
     summary = {"head": str(head_path), "elements_full": int(len(head.faces)), "elements": int(len(mesh.faces)),
                "edges_mm": [band.edge_mm for band in bands],
                "sources": {side: faces.tolist() for side, faces in zip(sides, kept)},
-               "source_area_mm2": {side: round(float(mesh.area_faces[faces].sum()), 6) for side, faces in zip(sides, kept)}}
+               "source_area_mm2": {side: round(float(mesh.area_faces[faces].sum()), 6) for side, faces in zip(sides, kept)},
+               # pairs of faces creased beyond the full mesh's fold test, kept as they are: at a band's long edges
+               # the helix rim's ridge can pass it without folding over (P143's ppm_detail_hard: up to 134 deg)
+               "creased_faces": int(folded_faces(mesh).sum()),
+               "max_dihedral_deg": round(float(np.degrees(mesh.face_adjacency_angles.max())), 1)}
     write_text_atomic(sources_path, json.dumps(summary, indent=1) + "\n")
     return summary

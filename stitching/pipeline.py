@@ -18,7 +18,7 @@ from ppm.mesh_io import write_mesh
 from mesh2hrtf_io.ear_canal import ear_canal_elements
 from .both_ears import mirror_left_right, stitch_both_ears
 from .errors import StitchError
-from .remesh import DEFAULT_BANDS, fill_folds, folded_faces, remesh_graded, remove_slivers, repair_self_intersections
+from .remesh import DEFAULT_BANDS, fill_folds, remesh_graded, repair_folds_and_slivers, repair_self_intersections
 from .replace_pinna import own_pinna_region, replace_pinna
 from .report import validate_head
 from .seam import smooth_seam
@@ -78,22 +78,6 @@ def stitch_files(head_path: str | os.PathLike, pinna_path: str | os.PathLike, ou
     write_mesh(out_mesh, mesh.vertices, mesh.faces)
     write_text_atomic(out_report, json.dumps(report, indent=2) + "\n")
     return report
-
-
-REPAIR_ROUNDS = 3
-"""Rounds of fold fill, sliver repair and self-intersection relaxing after the remesh: the sliver repair can crease
-a patch again (P143's ppm_detail_hard head: one pair of faces at 120.1 deg after the first round)."""
-
-
-def repair_folds_and_slivers(mesh: trimesh.Trimesh) -> trimesh.Trimesh:
-    """Folds cut out and filled, slivers remeshed, self-intersections relaxed, again while a fold is left (a mesh
-    clean after the first round is what that round made)."""
-    for attempt in range(REPAIR_ROUNDS):
-        mesh = repair_self_intersections(remove_slivers(fill_folds(mesh)))  # the last in case the slivers' made one
-        if not folded_faces(mesh).any():
-            break
-        log.info("a fold is left after repair round %d; repairing again", attempt + 1)
-    return mesh
 
 
 def remesh_files(stitched_path: str | os.PathLike, pinna_path: str | os.PathLike, out_mesh: str | os.PathLike,

@@ -216,7 +216,7 @@ def test_a_crumple_of_folded_triangles_is_cut_out_and_filled():
     kept = {tuple(np.round(t.ravel(), 9)) for t in filled.triangles}
     assert all(tuple(np.round(t.ravel(), 9)) in kept for t in sphere.triangles[far])
     # the remesh's closing repair (folds, slivers, self-intersections, again while a fold is left) leaves none
-    from stitching.pipeline import repair_folds_and_slivers
+    from stitching.remesh import repair_folds_and_slivers
 
     repaired = repair_folds_and_slivers(crumpled)
     report = validate_head(repaired)

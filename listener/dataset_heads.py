@@ -12,7 +12,7 @@ import numpy as np
 import trimesh
 
 from stitching.loops import boundary_loops, bridge_loops
-from stitching.remesh import Band, fill_folds, remesh_graded, remove_slivers, repair_self_intersections, self_intersections
+from stitching.remesh import Band, remesh_graded, repair_folds_and_slivers, repair_self_intersections, self_intersections
 
 from .errors import ListenerError
 
@@ -54,10 +54,7 @@ def both_ears_head(subject_dir: str | Path, splice_y_mm: tuple[float, float] = S
     centres = head.triangles_center
     near_gap = centres[(centres[:, 1] >= splice_y_mm[1] - 4.0) & (centres[:, 1] <= splice_y_mm[0] + 4.0)]
     head = remesh_graded(head, near_gap, (Band(15.0, 2.5, 0.3),))
-    # one round only: on P143 it leaves 12 faces creased past 120 deg at the neck's splice (y -41..-44 mm); a second
-    # round fills them, but that head's mirror-ICP mid-sagittal plane (listener.head_frame.symmetry_plane) then
-    # converges 12 deg off, so the kept listener benchmark and these heads stay as they were until that is mended
-    head = repair_self_intersections(remove_slivers(fill_folds(head), rounds=6, max_deviation_mm=0.5))
+    head = repair_folds_and_slivers(head, sliver_rounds=6, max_deviation_mm=0.5)  # P143: 12 creased faces at the splice
     if not (head.is_watertight and head.is_winding_consistent and head.volume > 0):
         raise ListenerError(f"{subject_dir}: the two graded heads joined at y = {splice_y_mm} mm are not one closed, "
                             "outward surface")

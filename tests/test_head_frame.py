@@ -158,3 +158,24 @@ def test_coarse_ears_and_bad_vertices_are_refused(sonicom):
                              head.faces, process=False)
     with pytest.raises(ListenerError, match="NaN"):
         find_head_frame(broken, "head with NaN")
+
+
+def test_the_mid_sagittal_plane_is_found_even_where_mirror_icp_stops_short():
+    """An egg-shaped head (mm) with two ear bumps, symmetric about a plane tilted 20 deg from y: with a single ICP
+    round ICP alone stops 0.6 deg and 0.6 mm off; the polish brings the plane within 0.1 deg and 0.1 mm."""
+    from listener.head_frame import symmetry_plane
+
+    rng = np.random.default_rng(3)
+    points = rng.normal(size=(40_000, 3))
+    points /= np.linalg.norm(points, axis=1)[:, None]
+    points *= np.array([100.0, 75.0, 110.0])
+    points[:, 0] += 0.0015 * points[:, 2] ** 2  # front and back differ, so the mirror is only about the y plane
+    for side in (1.0, -1.0):  # pinnae: bumps 12 mm out at the ends of the interaural axis
+        near = np.linalg.norm(points - np.array([0.0, side * 75.0, 0.0]), axis=1) < 20.0
+        points[near, 1] += side * 12.0
+    tilt = Rotation.from_euler("z", 20.0, degrees=True).as_matrix()
+    points = points @ tilt.T + np.array([3.0, 5.0, -2.0])
+    normal, offset, _ = symmetry_plane(points, {"points": 6000, "iterations": 1})
+    truth = tilt @ np.array([0.0, 1.0, 0.0])
+    assert np.degrees(np.arccos(min(1.0, abs(normal @ truth)))) < 0.1
+    assert abs(abs(offset) - abs(truth @ np.array([3.0, 5.0, -2.0]))) < 0.1

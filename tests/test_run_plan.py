@@ -62,13 +62,17 @@ def test_the_demo_plan(in_root):
 def test_the_paper_plan_reads_the_committed_step_store(in_root, sonicom):
     run = RunPlan(_config("config/paper_sonicom.yaml"))
     assert run.subjects == ["P039", "P067", "P143"]
-    assert run.evaluation_conditions("P143") == ["original", "ppm", "own_pinna", "default_ppm", "ppm_detail"]
+    assert run.evaluation_conditions("P143") == ["original", "ppm", "own_pinna", "default_ppm", "ppm_detail",
+                                                 "ppm_hard", "ppm_detail_hard", "nricp_hard"]
     assert run.evaluation_conditions("P067") == ["original", "ppm", "own_pinna", "ppm_detail"]
     assert run.evaluation_conditions("P039") == ["original", "ppm", "own_pinna", "ppm_detail"]
     assert run.head_mesh_of("P143", "ppm_detail") == "evaluation/sonicom/steps/P143/ppm_detail/head.ply"
     # the PPM head is the one kept beside its solved steps, not a rebuild
     assert run.head_mesh_of("P143", "ppm") == "evaluation/sonicom/steps/P143/ppm/head.ply"
     assert run.head_mesh_of("P143", "original").endswith("sonicom/P143/head_graded_left.ply")
+    # the heads from the defective scan are solved on a mesh per frequency band, each band's kept with its steps
+    assert run.step_store("P143", "ppm_detail_hard", 1) == "evaluation/sonicom/steps/P143/ppm_detail_hard/band_1"
+    assert run.step_project("P143", "nricp_hard", 40) == "results/P143/hrtf/nricp_hard/project"
     steps = run.steps_of("P067", "ppm")
     assert len(steps) == 40 and steps[0] == "results/P067/hrtf/ppm/steps/source_1/steps_1-1.json"
     # the dataset's own reference HRIRs are not a solved variant
@@ -77,6 +81,7 @@ def test_the_paper_plan_reads_the_committed_step_store(in_root, sonicom):
     assert len(run.reference_frequencies("P039")) == 40
     inputs = run.evaluation_report_inputs()
     assert inputs["P143_default_ppm_hrtf"] == "results/P143/hrtf/default_ppm/HRTF.sofa"
+    assert inputs["P143_hard_scan"] == "results/P143/controls/hard/scan.ply"
     assert "evaluation/sonicom/summary.csv" in run.final_output()
     assert "steps" in run.solve_plan_text(lambda: 2)  # NumCalc's plan counts the steps on the cores asked for
     # before the export no NumCalc prediction: config hrtf.step_runtime_min per step

@@ -1,7 +1,7 @@
 """What each part of the personal-detail layer buys: the layer with one setting changed at a time, on one subject's
 PPM fits of its clean crop and of one defective scan per level, against the clean truth.
 
-    .venv/bin/python studies/personal_detail_variants.py [--subject P143] [--seed 19]
+    .venv/bin/python studies/personal_detail_variants.py [--subject P143] [--seed 19] [--variants NAME ...]
 
 The PPM is fitted (template built without the subject, results/templates/without_<subject>) to the clean crop and
 to one draw of each level of ppm/data/scan_defects.yaml (in the head frame); NRICP (ppm.align.nricp) is fitted to
@@ -29,6 +29,7 @@ VARIANTS = {
     "reach 2.5 mm": {"reach_mm": 2.5},
     "PPM -> scan pairs only": {"reverse_weight": 0.0},
     "one stiffness (0.5 mm^2)": {"stiffness_mm2": [0.5], "iterations_per_stiffness": 8},
+    "pairs with facing surfaces only": {"facing_pairs": True},
 }
 
 
@@ -36,6 +37,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--subject", default="P143")
     parser.add_argument("--seed", type=int, default=19)
+    parser.add_argument("--variants", nargs="+", choices=sorted(VARIANTS), default=list(VARIANTS),
+                        help="lay only these variants (default: all)")
     parser.add_argument("--data-root", type=Path, default=ROOT.parent / "shared" / "data" / "sonicom")
     args = parser.parse_args()
     import bpy  # noqa: F401,PLC0415  (before pymeshlab)
@@ -60,21 +63,22 @@ def main() -> None:
     rng = np.random.default_rng(args.seed)
     work = Path(tempfile.mkdtemp(prefix="detail_variants_"))
     figures: dict[str, dict] = {}
-    names = list(VARIANTS)
+    variants = {name: VARIANTS[name] for name in args.variants}
+    names = list(variants)
     print(f"{'scan':8} {'PPM':>13} {'NRICP':>13} " + " ".join(f"{n[:22]:>22}" for n in names))
     for level in ["clean", *levels()]:
         mesh = clean if level == "clean" else defective_scan(clean, level, rng, posed=False).mesh
         target, result, _ = fit_file(model, mesh, work, f"{args.subject}_{level}", "project_frame")
         row = {"ppm": truth_distances(truth, result.vertices_mm, model.faces),
                "nricp": truth_distances(truth, nricp_fit(template, surface_without_outliers(target)), model.faces)}
-        for name, overrides in VARIANTS.items():
+        for name, overrides in variants.items():
             layer = personal_detail(result.vertices_mm, model.faces, target, DetailSettings.packaged(**overrides))
             row[name] = truth_distances(truth, result.vertices_mm + layer.displacement_mm, model.faces)
         figures[level] = {key: {"median_mm": round(value["median_mm"], 4), "p95_mm": round(value["p95_mm"], 4)}
                           for key, value in row.items()}
         cells = [f"{row[k]['median_mm']:.3f}/{row[k]['p95_mm']:.3f}" for k in ("ppm", "nricp", *names)]
         print(f"{level:8} {cells[0]:>13} {cells[1]:>13} " + " ".join(f"{c:>22}" for c in cells[2:]), flush=True)
-    print(json.dumps({"subject": args.subject, "seed": args.seed, "variants": VARIANTS, "scans": figures}))
+    print(json.dumps({"subject": args.subject, "seed": args.seed, "variants": variants, "scans": figures}))
 
 
 if __name__ == "__main__":

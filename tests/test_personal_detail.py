@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from ppm.align.detail import personal_detail, rim_taper, rim_vertices
+from ppm.align.detail import closest_facing, closest_within, personal_detail, rim_taper, rim_vertices
 from ppm.align.synthetic import add_scan_defects
 from ppm.align.target import target_from_mesh
 from ppm.errors import PpmError
@@ -121,3 +121,21 @@ def test_the_layer_is_a_shape_key_of_the_blend(model, posed, tmp_path):
     np.testing.assert_allclose(np.load(tmp_path / "without.npy"), vertices, atol=1e-3)
     with pytest.raises(PpmError, match="expected finite"):
         model.set_personal_detail(np.full_like(vertices, np.nan))
+
+
+def test_facing_pairs_find_the_near_face_of_a_thin_sheet():
+    """A slab 1 mm thick (mm; like a lobule): a point 0.3 mm above its lower face, facing up like its upper face,
+    is nearest to the lower face (turned away); the facing search finds the upper one, 0.7 mm up."""
+    slab = trimesh.creation.box(extents=(20.0, 20.0, 1.0))
+    slab.vertices[:, 2] += 0.5  # faces at z = 0 (normal -z) and z = 1 (normal +z)
+    slab = trimesh.Trimesh(slab.vertices, slab.faces).subdivide().subdivide()
+    point, up = np.array([[0.3, -0.2, 0.3]]), np.array([[0.0, 0.0, 1.0]])
+    nearest, distance, _ = closest_within(slab, point, 4.0)
+    assert distance[0] == pytest.approx(0.3) and nearest[0, 2] == pytest.approx(0.0)
+    facing, distance, triangle = closest_facing(slab, point, up, 4.0, 45.0)
+    assert distance[0] == pytest.approx(0.7) and facing[0, 2] == pytest.approx(1.0)
+    assert slab.face_normals[triangle[0]] @ up[0] == pytest.approx(1.0)
+    # a point far beyond reach gets no pair
+    _, distance, _ = closest_facing(slab, np.array([[0.0, 0.0, 40.0]]), up, 4.0, 45.0)
+    assert np.isinf(distance[0])
+

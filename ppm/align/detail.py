@@ -45,6 +45,7 @@ class DetailSettings:
     rim_taper_mm: float
     max_displacement_mm: float
     crease_limit_deg: float
+    facing_pairs: bool = False
 
     @classmethod
     def packaged(cls, **overrides) -> "DetailSettings":
@@ -149,6 +150,41 @@ def closest_within(mesh: trimesh.Trimesh, points_mm: np.ndarray, reach_mm: float
     return closest, distance, triangle
 
 
+#: Faces (nearest by centroid) among which :func:`closest_facing` looks for a point on a face turned the same way.
+FACING_CANDIDATES = 24
+
+
+def closest_facing(mesh: trimesh.Trimesh, points_mm: np.ndarray, normals: np.ndarray, reach_mm: float,
+                   agreement_deg: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Like :func:`closest_within`, but each point's closest point on the faces of ``mesh`` whose normals lie within
+    ``agreement_deg`` of the point's own normal (of the :data:`FACING_CANDIDATES` faces nearest by centroid): on a
+    sheet thinner than the pairs' offsets (a lobule, a helix rim) the nearest point can lie on the far face, turned
+    away, where this finds the near one. Points with no such face keep their own position and an infinite distance."""
+    points_mm = np.asarray(points_mm, dtype=np.float64)
+    closest, distance = points_mm.copy(), np.full(len(points_mm), np.inf)
+    triangle = np.zeros(len(points_mm), dtype=np.int64)
+    if len(mesh.faces) == 0 or len(points_mm) == 0:
+        return closest, distance, triangle
+    longest = float(mesh.edges_unique_length.max())
+    count = min(FACING_CANDIDATES, len(mesh.faces))
+    gap, candidate = cKDTree(mesh.triangles_center).query(points_mm, k=count, distance_upper_bound=reach_mm + longest)
+    gap, candidate = gap.reshape(len(points_mm), count), candidate.reshape(len(points_mm), count)
+    valid = np.isfinite(gap)
+    candidate[~valid] = 0
+    facing = valid & (np.einsum("ikj,ij->ik", mesh.face_normals[candidate], normals)
+                      >= np.cos(np.deg2rad(agreement_deg)))
+    rows, columns = np.nonzero(facing)
+    if len(rows) == 0:
+        return closest, distance, triangle
+    faces = candidate[rows, columns]
+    on_face = trimesh.triangles.closest_point(mesh.triangles[faces], points_mm[rows])
+    length = np.linalg.norm(on_face - points_mm[rows], axis=1)
+    order = np.lexsort((length, rows))
+    best = order[np.unique(rows[order], return_index=True)[1]]
+    closest[rows[best]], distance[rows[best]], triangle[rows[best]] = on_face[best], length[best], faces[best]
+    return closest, distance, triangle
+
+
 def neighbours_agree(points_mm: np.ndarray, offsets_mm: np.ndarray, radius_mm: float, tolerance_mm: float) -> np.ndarray:
     """Whether each point's offset lies within ``tolerance_mm`` of the median offset of the points within
     ``radius_mm`` of it (a spike or an outlier sheet stands out of its neighbourhood)."""
@@ -215,13 +251,21 @@ def personal_detail(vertices_mm: np.ndarray, faces: np.ndarray, target: Target,
     for stiffness in settings.stiffness_mm2:
         for _ in range(max(1, settings.iterations_per_stiffness)):
             moved = trimesh.Trimesh(vertices_mm + displacement, faces, process=False)
-            closest, distance, triangle = closest_within(scan, moved.vertices, settings.reach_mm)
+            if settings.facing_pairs:
+                closest, distance, triangle = closest_facing(scan, moved.vertices, moved.vertex_normals,
+                                                             settings.reach_mm, settings.normal_agreement_deg)
+            else:
+                closest, distance, triangle = closest_within(scan, moved.vertices, settings.reach_mm)
             trusted = _trusted_pairs(moved.vertices, np.asarray(moved.vertex_normals), closest, distance,
                                      scan.face_normals[triangle], scan_edge, closest, moved.vertices, settings)
             system = sp.diags(trusted.astype(np.float64)) + stiffness * smoothing + settings.decay * sp.identity(n)
             wanted = trusted[:, None] * (closest - vertices_mm)
             if settings.reverse_weight > 0:
-                on_ppm, back, ppm_triangle = closest_within(moved, scan_points, settings.reach_mm)
+                if settings.facing_pairs:
+                    on_ppm, back, ppm_triangle = closest_facing(moved, scan_points, scan_normals, settings.reach_mm,
+                                                                settings.normal_agreement_deg)
+                else:
+                    on_ppm, back, ppm_triangle = closest_within(moved, scan_points, settings.reach_mm)
                 pulling = np.flatnonzero(_trusted_pairs(scan_points, scan_normals, on_ppm, back,
                                                         moved.face_normals[ppm_triangle], scan_edge, scan_points,
                                                         on_ppm, settings))

@@ -347,8 +347,10 @@ def figure7(rows: list[dict], path: str | os.PathLike) -> Path:
     if any(r.get("qe_paper_percent") is not None for r in rows):
         protocols.insert(0, ("qe_paper_percent", "pe_paper_deg", "paper's protocol; template: original (solved here)"))
     width = 0.8 / len(conditions)
-    fig, axes = plt.subplots(len(protocols), 2, figsize=(4.0 + 1.3 * len(subjects), 0.4 + 3.2 * len(protocols)),
-                             squeeze=False)
+    legend_columns = min(len(conditions), 5)  # wider rows ran off the figure's edges
+    legend_rows = -(-len(conditions) // legend_columns)
+    height_in = 0.4 + 3.2 * len(protocols) + 0.22 * legend_rows
+    fig, axes = plt.subplots(len(protocols), 2, figsize=(4.0 + 1.3 * len(subjects), height_in), squeeze=False)
     for (qe_key, pe_key, title), panels in zip(protocols, axes):
         for ax, key, label in ((panels[0], qe_key, "quadrant errors (%)"), (panels[1], pe_key, "local polar RMS error (deg)")):
             for k, condition in enumerate(conditions):
@@ -362,9 +364,9 @@ def figure7(rows: list[dict], path: str | os.PathLike) -> Path:
             ax.set_title(title, fontsize=8)
     # one legend under all panels: inside a panel it hides the tallest bars
     handles, labels = axes[0, 0].get_legend_handles_labels()
-    fig.legend(handles, labels, loc="lower center", ncol=len(conditions), fontsize=8, frameon=False)
+    fig.legend(handles, labels, loc="lower center", ncol=legend_columns, fontsize=8, frameon=False)
     fig.suptitle("predicted sagittal-plane localisation (baumgartner2014, S at 8 % QE on the template)", fontsize=9)
-    fig.tight_layout(rect=(0, 0.07 / len(protocols), 1, 1))
+    fig.tight_layout(rect=(0, (0.1 + 0.22 * legend_rows) / height_in, 1, 1))
     with atomic_path(path) as tmp:
         fig.savefig(tmp, dpi=120, format="png")
     plt.close(fig)

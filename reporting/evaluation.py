@@ -388,6 +388,9 @@ def figure6(results: str | os.PathLike, subjects: list[str], conditions: dict[st
     from ppm.render import FINE_SCALE, PAPER_SCALE, render_distance_map  # noqa: PLC0415
 
     results = Path(results)
+    # one colour per condition in every subject's histogram
+    every = list(dict.fromkeys(c for subject in subjects for c in conditions[subject]))
+    colours = {c: plt.get_cmap("tab10")(k % 10) for k, c in enumerate(every)}
     fig, axes = plt.subplots(len(subjects), 3, figsize=(16, 3.3 * len(subjects)), squeeze=False,
                              gridspec_kw={"width_ratios": [2.0, 2.0, 1.0]})
     with tempfile.TemporaryDirectory() as tmp:
@@ -410,7 +413,7 @@ def figure6(results: str | os.PathLike, subjects: list[str], conditions: dict[st
             for condition, values in data.items():
                 d = values["target_to_model"]
                 ax.hist(np.clip(d, 0, 5.0), bins=bins, weights=np.full(len(d), 100.0 / len(d)), histtype="step",
-                        lw=1.2, label=f"{condition}: median {np.median(d):.2f} mm")
+                        lw=1.2, color=colours[condition], label=f"{condition}: median {np.median(d):.2f} mm")
             ax.axvline(np.median(forward), color="k", ls="--", lw=0.8)
             ax.set_xlabel("distance scan -> pinna (mm; last bin >= 5)")
             ax.set_ylabel("scan points (%)")

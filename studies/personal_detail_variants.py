@@ -30,6 +30,7 @@ VARIANTS = {
     "PPM -> scan pairs only": {"reverse_weight": 0.0},
     "one stiffness (0.5 mm^2)": {"stiffness_mm2": [0.5], "iterations_per_stiffness": 8},
     "pairs with facing surfaces only": {"facing_pairs": True},
+    "roughness guard 10 deg": {"roughness_limit_deg": 10.0},
 }
 
 

@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 import trimesh
 
-from ppm.align.detail import closest_facing, closest_within, personal_detail, rim_taper, rim_vertices
+from ppm.align.detail import (DetailSettings, closest_facing, closest_within, personal_detail, rim_taper, rim_vertices,
+                              surface_roughness_deg)
 from ppm.align.synthetic import add_scan_defects
 from ppm.align.target import target_from_mesh
 from ppm.errors import PpmError
@@ -138,4 +139,22 @@ def test_facing_pairs_find_the_near_face_of_a_thin_sheet():
     # a point far beyond reach gets no pair
     _, distance, _ = closest_facing(slab, np.array([[0.0, 0.0, 40.0]]), up, 4.0, 45.0)
     assert np.isinf(distance[0])
+
+
+def test_the_roughness_guard_keeps_the_layer_off_a_noisy_scan_s_noise(posed):
+    """A scan of the PPM itself with 0.5 mm noise along its normals (the hard defect level's): the whole schedule
+    follows the noise (rougher, farther from the true surface); the roughness guard stops it at a stiffer stage,
+    nearer the truth and within its limit of the PPM's own roughness."""
+    vertices, faces, normals = posed
+    rng = np.random.default_rng(2)
+    noisy = vertices + rng.normal(0.0, 0.5, len(vertices))[:, None] * normals
+    target = target_from_mesh(trimesh.Trimesh(noisy, faces, process=False), "noisy PPM scan")
+    own = surface_roughness_deg(vertices, faces)
+    runs = {limit: personal_detail(vertices, faces, target, DetailSettings.packaged(roughness_limit_deg=limit))
+            for limit in (None, 10.0)}
+    rough = {limit: surface_roughness_deg(vertices + run.displacement_mm, faces) for limit, run in runs.items()}
+    off = {limit: np.median(np.linalg.norm(run.displacement_mm, axis=1)) for limit, run in runs.items()}
+    assert rough[None] > own + 10.0  # the supple end follows the noise
+    assert rough[10.0] <= own + 10.0 and runs[10.0].stages < len(DetailSettings.packaged().stiffness_mm2)
+    assert off[10.0] < off[None]  # the truth is the PPM itself: the guarded layer strays less from it
 

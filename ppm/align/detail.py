@@ -46,6 +46,7 @@ class DetailSettings:
     max_displacement_mm: float
     crease_limit_deg: float
     facing_pairs: bool = False
+    roughness_limit_deg: float | None = None
 
     @classmethod
     def packaged(cls, **overrides) -> "DetailSettings":
@@ -70,11 +71,13 @@ class PersonalDetail:
     displacement_mm : (n, 3) displacement of every vertex (mm, project frame).
     trusted : (n,) whether the vertex took scan evidence in the last iteration.
     halvings : rounds of halving the displacements around folded faces.
+    stages : stiffness stages of the schedule kept (fewer than the schedule's where the roughness guard stopped it).
     """
 
     displacement_mm: np.ndarray
     trusted: np.ndarray
     halvings: int
+    stages: int = 0
 
     @property
     def size_mm(self) -> np.ndarray:
@@ -87,7 +90,8 @@ class PersonalDetail:
         return {"trusted_share": round(float(self.trusted.mean()), 4),
                 "displacement_median_mm": round(float(np.median(size)), 4),
                 "displacement_p95_mm": round(float(np.percentile(size, 95)), 4),
-                "displacement_max_mm": round(float(size.max()), 4), "fold_halvings": self.halvings}
+                "displacement_max_mm": round(float(size.max()), 4), "fold_halvings": self.halvings,
+                "stiffness_stages": self.stages}
 
 
 def rim_vertices(faces: np.ndarray) -> np.ndarray:
@@ -185,6 +189,13 @@ def closest_facing(mesh: trimesh.Trimesh, points_mm: np.ndarray, normals: np.nda
     return closest, distance, triangle
 
 
+def surface_roughness_deg(vertices_mm: np.ndarray, faces: np.ndarray) -> float:
+    """The 99th percentile of the angles (deg) between the normals of neighbouring faces: on the PPM's 1 mm mesh
+    36-38 deg on the SONICOM fits; a layer that follows a noisy scan's 0.5 mm noise raises it to 57-63 deg."""
+    mesh = trimesh.Trimesh(vertices_mm, faces, process=False)
+    return float(np.percentile(np.degrees(mesh.face_adjacency_angles), 99))
+
+
 def neighbours_agree(points_mm: np.ndarray, offsets_mm: np.ndarray, radius_mm: float, tolerance_mm: float) -> np.ndarray:
     """Whether each point's offset lies within ``tolerance_mm`` of the median offset of the points within
     ``radius_mm`` of it (a spike or an outlier sheet stands out of its neighbourhood)."""
@@ -248,7 +259,11 @@ def personal_detail(vertices_mm: np.ndarray, faces: np.ndarray, target: Target,
     free = np.flatnonzero(taper > 0.0)
     displacement = np.zeros((n, 3))
     trusted = np.zeros(n, dtype=bool)
+    roughness_cap = (None if settings.roughness_limit_deg is None
+                     else surface_roughness_deg(vertices_mm, faces) + settings.roughness_limit_deg)
+    stages = 0
     for stiffness in settings.stiffness_mm2:
+        before = (displacement.copy(), trusted.copy())
         for _ in range(max(1, settings.iterations_per_stiffness)):
             moved = trimesh.Trimesh(vertices_mm + displacement, faces, process=False)
             if settings.facing_pairs:
@@ -280,6 +295,10 @@ def personal_detail(vertices_mm: np.ndarray, faces: np.ndarray, target: Target,
             for axis in range(3):
                 displacement[free, axis] = solve(np.ascontiguousarray(wanted[free, axis]))
             displacement *= taper[:, None]
+        if stages and roughness_cap is not None and surface_roughness_deg(vertices_mm + displacement, faces) > roughness_cap:
+            displacement, trusted = before  # this stage fits the scan's noise: keep the stiffer one before it
+            break
+        stages += 1
     size = np.linalg.norm(displacement, axis=1)
     displacement *= np.minimum(1.0, settings.max_displacement_mm / np.maximum(size, 1e-12))[:, None]
     reference = _face_normals(vertices_mm, faces)
@@ -297,7 +316,7 @@ def personal_detail(vertices_mm: np.ndarray, faces: np.ndarray, target: Target,
         displacement[np.unique(faces[folded])] *= 0.5
     else:
         raise PpmError("the personal-detail layer keeps folding faces after 60 halvings; check the fit")
-    return PersonalDetail(displacement_mm=displacement, trusted=trusted, halvings=halvings)
+    return PersonalDetail(displacement_mm=displacement, trusted=trusted, halvings=halvings, stages=stages)
 
 
 def add_personal_detail(model, target: Target, settings: DetailSettings | None = None) -> tuple[PersonalDetail, dict]:

@@ -4,12 +4,13 @@ condition is predicted with them (left ears solved, right ear from the dataset's
 row is the dataset's own HRIRs heard with that template.
 
     .venv/bin/python studies/paper_protocol.py [--evaluation evaluation/sonicom] [--data-root ../shared/data/sonicom]
-                                               [--update]
+                                               [--update] [--also P067/ppm_hard ...]
 
 Reads committed files only (about a minute). With ``--update`` the paper's columns of ``summary.csv``
 (reporting.paper_protocol.PAPER_COLUMNS) and Figure 7 are written anew from them, as the workflow's
 evaluation_report writes them. Last line (JSON): per subject S and, per condition, QE, PE and their differences from
-``original`` (``delta_qe_pp``, ``delta_pe_deg``).
+``original`` (``delta_qe_pp``, ``delta_pe_deg``). ``--also SUBJECT/CONDITION`` judges a solve that is not in the
+evaluation yet the same way (``results/<subject>/hrtf/<condition>/HRTF.sofa``, the workflow's left-ear solve).
 """
 from __future__ import annotations
 
@@ -29,7 +30,11 @@ def main() -> None:
     parser.add_argument("--hrir", default="hrir_mesh2hrtf_48k.sofa", help="the dataset's HRIRs in each subject folder")
     parser.add_argument("--update", action="store_true", help="write the paper's columns into summary.csv and "
                                                               "redraw figure7_qe_pe.png")
+    parser.add_argument("--also", nargs="+", default=[], metavar="SUBJECT/CONDITION",
+                        help="also judge results/<subject>/hrtf/<condition>/HRTF.sofa (not with --update)")
     args = parser.parse_args()
+    if args.also and args.update:
+        parser.error("--also judges solves outside the evaluation; it cannot be written into summary.csv")
     from reporting.evaluation import figure7, left_hrtf_files, read_summary_csv, write_summary_csv  # noqa: PLC0415
     from reporting.paper_protocol import with_paper_columns  # noqa: PLC0415
 
@@ -38,6 +43,13 @@ def main() -> None:
     subjects = list(dict.fromkeys(row["subject"] for row in rows))
     hrtfs = {(subject, condition): path for subject in subjects
              for condition, path in left_hrtf_files(args.evaluation / "sofa", subject).items()}
+    for item in args.also:
+        subject, _, condition = item.partition("/")
+        path = ROOT / "results" / subject / "hrtf" / condition / "HRTF.sofa"
+        if subject not in subjects or not path.is_file():
+            raise SystemExit(f"{path}: no such solve of a subject in {summary}; solve it with the workflow first")
+        hrtfs[(subject, condition)] = path
+        rows.append({"subject": subject, "condition": condition})
     if not any(condition == "original" for _, condition in hrtfs):
         raise SystemExit(f"{args.evaluation / 'sofa'}: no <subject>_original_left_HRTF.sofa; the paper's protocol "
                          "needs the unchanged head")

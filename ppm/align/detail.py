@@ -259,6 +259,12 @@ def personal_detail(vertices_mm: np.ndarray, faces: np.ndarray, target: Target,
     free = np.flatnonzero(taper > 0.0)
     displacement = np.zeros((n, 3))
     trusted = np.zeros(n, dtype=bool)
+    def pair(mesh: trimesh.Trimesh, points_mm: np.ndarray, normals: np.ndarray):
+        """Each point's closest point on ``mesh`` (on a face turned its way with ``facing_pairs``)."""
+        if settings.facing_pairs:
+            return closest_facing(mesh, points_mm, normals, settings.reach_mm, settings.normal_agreement_deg)
+        return closest_within(mesh, points_mm, settings.reach_mm)
+
     roughness_cap = (None if settings.roughness_limit_deg is None
                      else surface_roughness_deg(vertices_mm, faces) + settings.roughness_limit_deg)
     stages = 0
@@ -266,21 +272,13 @@ def personal_detail(vertices_mm: np.ndarray, faces: np.ndarray, target: Target,
         before = (displacement.copy(), trusted.copy())
         for _ in range(max(1, settings.iterations_per_stiffness)):
             moved = trimesh.Trimesh(vertices_mm + displacement, faces, process=False)
-            if settings.facing_pairs:
-                closest, distance, triangle = closest_facing(scan, moved.vertices, moved.vertex_normals,
-                                                             settings.reach_mm, settings.normal_agreement_deg)
-            else:
-                closest, distance, triangle = closest_within(scan, moved.vertices, settings.reach_mm)
+            closest, distance, triangle = pair(scan, moved.vertices, moved.vertex_normals)
             trusted = _trusted_pairs(moved.vertices, np.asarray(moved.vertex_normals), closest, distance,
                                      scan.face_normals[triangle], scan_edge, closest, moved.vertices, settings)
             system = sp.diags(trusted.astype(np.float64)) + stiffness * smoothing + settings.decay * sp.identity(n)
             wanted = trusted[:, None] * (closest - vertices_mm)
             if settings.reverse_weight > 0:
-                if settings.facing_pairs:
-                    on_ppm, back, ppm_triangle = closest_facing(moved, scan_points, scan_normals, settings.reach_mm,
-                                                                settings.normal_agreement_deg)
-                else:
-                    on_ppm, back, ppm_triangle = closest_within(moved, scan_points, settings.reach_mm)
+                on_ppm, back, ppm_triangle = pair(moved, scan_points, scan_normals)
                 pulling = np.flatnonzero(_trusted_pairs(scan_points, scan_normals, on_ppm, back,
                                                         moved.face_normals[ppm_triangle], scan_edge, scan_points,
                                                         on_ppm, settings))

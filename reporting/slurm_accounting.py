@@ -16,7 +16,7 @@ import time
 from pathlib import Path
 from typing import Callable
 
-SACCT_FIELDS = ("JobIDRaw", "JobName", "Comment", "State", "ReqMem", "MaxRSS", "Elapsed", "Timelimit")
+SACCT_FIELDS = ("JobIDRaw", "JobName", "Comment", "State", "ReqMem", "MaxRSS", "Elapsed", "Timelimit", "WorkDir")
 _UNITS = {"K": 1 / 1024, "M": 1.0, "G": 1024.0, "T": 1024.0 * 1024.0}
 
 
@@ -46,17 +46,26 @@ def rule_of(comment: str) -> str:
     return name.split("_wildcards_")[0] or "unknown"
 
 
-def sacct_jobs(since: str = "now-1days", env: dict | None = None) -> list[dict]:
+def sacct_jobs(since: str = "now-1days", env: dict | None = None, work_dir: Path | None = None) -> list[dict]:
     """Every job since ``since`` with its rule, state, requested memory and time, and the largest MaxRSS and
     Elapsed of its steps (the batch step holds the job's processes). ``env``: the environment sacct runs in
-    (e.g. with SLURM_CONF); default this process's."""
+    (e.g. with SLURM_CONF); default this process's. ``work_dir``: only the jobs submitted from that folder (a
+    run's own jobs, not a job of an earlier run that the cluster still counts as running or ended late)."""
     done = subprocess.run(["sacct", "--parsable2", "--noheader", "--starttime", since, "--format", ",".join(SACCT_FIELDS)],
                           capture_output=True, text=True, check=True, env=env)
+    return parse_sacct(done.stdout, work_dir)
+
+
+def parse_sacct(text: str, work_dir: Path | None = None) -> list[dict]:
+    """The jobs in sacct's ``--parsable2 --noheader`` output of ``SACCT_FIELDS`` (see ``sacct_jobs``)."""
     jobs: dict[str, dict] = {}
-    for line in done.stdout.splitlines():
+    wanted = str(Path(work_dir).resolve()) if work_dir is not None else None
+    for line in text.splitlines():
         values = dict(zip(SACCT_FIELDS, line.split("|")))
         job_id, _, step = values["JobIDRaw"].partition(".")
         if not step:
+            if wanted is not None and str(Path(values.get("WorkDir") or "/").resolve()) != wanted:
+                continue  # its steps are skipped with it
             jobs[job_id] = {"job_id": job_id, "run": values["JobName"], "rule": rule_of(values["Comment"]),
                             "state": values["State"].split()[0], "req_mem_mb": memory_mb(values["ReqMem"]),
                             "time_limit_s": duration_s(values["Timelimit"]), "elapsed_s": duration_s(values["Elapsed"]),
@@ -136,7 +145,7 @@ def run_demo_on_slurm(root: Path, work: Path | None = None, stop_after: bool = T
             again = subprocess.run(command, cwd=work, env=env, capture_output=True, text=True, timeout=3600)
             if again.returncode != 0:
                 raise RuntimeError(f"the resumed run failed:\n{(again.stdout + again.stderr)[-3000:]}")
-        jobs = sacct_jobs(since, env)
+        jobs = sacct_jobs(since, env, work_dir=work)
         summary = summarise(jobs)
         summary["resumed_after_scancel"] = cancelled
         status = work / "results" / "demo01" / "hrtf" / "embedded.json"

@@ -176,7 +176,10 @@ start() {
     sacctmgr -i add cluster ppmlocal >/dev/null 2>&1 || true
     sacctmgr -i add account ppm Description=ppm-hrtf Organization=ppm-hrtf >/dev/null 2>&1 || true
     sacctmgr -i add user "$(id -un)" Account=ppm DefaultAccount=ppm >/dev/null 2>&1 || true
-    start_daemon slurmctld slurmctld -f "$SLURM_CONF"
+    # -c: a test cluster starts without the jobs of its last life (a job left running when it was stopped would
+    # come back and end as TIMEOUT, its start long past); sacct's records of such jobs are closed as runaways
+    start_daemon slurmctld slurmctld -c -f "$SLURM_CONF"
+    sacctmgr -i list runawayjobs >/dev/null 2>&1 || true
     start_daemon slurmd slurmd -f "$SLURM_CONF"
     wait_for 60 "the node $HOST" node_idle
     scontrol update NodeName="$HOST" State=RESUME >/dev/null 2>&1 || true

@@ -7,7 +7,7 @@ import subprocess
 
 import pytest
 
-from reporting.slurm_accounting import duration_s, memory_mb, rule_of, run_demo_on_slurm, summarise
+from reporting.slurm_accounting import duration_s, memory_mb, parse_sacct, rule_of, run_demo_on_slurm, summarise
 
 from conftest import ROOT
 
@@ -28,6 +28,25 @@ def test_sacct_fields_parse():
     assert summary["jobs_submitted"] == 3 and summary["jobs_failed"] == 1 and summary["jobs_cancelled"] == 1
     assert summary["max_rss_over_request"] == pytest.approx(3100 / 3000, abs=1e-3)
     assert summary["per_rule"]["align_ppm"]["jobs"] == 2
+
+
+def test_a_job_of_an_earlier_run_is_not_counted_as_this_runs(tmp_path):
+    """A remesh job left running when an earlier run's cluster was stopped comes back as TIMEOUT once the cluster
+    starts again (its start time is long past): sacct lists it within this run's window, from another folder."""
+    here, earlier = tmp_path / "project", tmp_path / "earlier" / "project"
+    text = "\n".join([
+        f"7|run-a|rule_remesh_wildcards_demo01|TIMEOUT|2000M||00:10:03|00:10:00|{earlier}",
+        "7.batch|batch||CANCELLED||431M|00:10:03||",
+        f"12|run-b|rule_remesh_wildcards_demo01|COMPLETED|2000M||00:00:14|00:10:00|{here}",
+        "12.batch|batch||COMPLETED||455M|00:00:14||",
+        f"13|run-b|rule_stitch_wildcards_demo01|COMPLETED|1000M||00:00:09|00:10:00|{here}/",
+    ])
+    everything = parse_sacct(text)
+    assert [job["state"] for job in everything] == ["TIMEOUT", "COMPLETED", "COMPLETED"]
+    ours = parse_sacct(text, work_dir=here)
+    assert [(job["job_id"], job["rule"]) for job in ours] == [("12", "remesh"), ("13", "stitch")]
+    assert ours[0]["max_rss_mb"] == 455.0 and ours[0]["elapsed_s"] == 14.0
+    assert summarise(ours)["jobs_failed"] == 0
 
 
 def _packages_installable() -> str | None:

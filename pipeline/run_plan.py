@@ -127,15 +127,24 @@ class RunPlan:
     def evaluation_conditions(self, subject: str) -> list[str]:
         """The solved conditions of a subject's evaluation (config evaluation.conditions); a control only for the
         subjects of evaluation.<control>_subjects (original_subjects, own_pinna_subjects, default_ppm_subjects,
-        ppm_detail_subjects; hard_subjects for the three *_hard conditions), all when that list is empty."""
+        ppm_detail_subjects; hard_subjects for the three *_hard conditions), all when that list is empty; never
+        one that evaluation.not_solved says the pipeline could not build for the subject."""
         evaluation = self.config["evaluation"]
+        failed = self.not_solved(subject)
 
         def chosen(condition: str) -> bool:
             key = "hard_subjects" if condition.endswith("_hard") else f"{condition}_subjects"
             subjects = evaluation.get(key) or []  # ppm has no such list: always
-            return not subjects or subject in subjects
+            return (not subjects or subject in subjects) and condition not in failed
 
         return [c for c in evaluation["conditions"] if chosen(c)]
+
+    def not_solved(self, subject: str) -> dict[str, str]:
+        """The conditions of evaluation.conditions that the pipeline could not build for ``subject``, with the
+        reason (config evaluation.not_solved); the subject's list of hard_subjects etc. would otherwise ask for
+        them."""
+        failed = dict((self.config["evaluation"].get("not_solved") or {}).get(subject) or {})
+        return {c: r for c, r in failed.items() if c in self.config["evaluation"]["conditions"]}
 
     @staticmethod
     def detail_target(subject: str, detailed: str) -> str:

@@ -534,10 +534,18 @@ def _outside_note(outside_settings: list[str] | None) -> str:
             + "; ".join(f"`{entry}`" for entry in outside_settings) + ".")
 
 
+def not_solved_lines(not_solved: dict[str, dict[str, str]]) -> list[str]:
+    """One line per condition the pipeline could not build for a subject (config evaluation.not_solved), with its
+    reason: a failure is a result, so the report says it instead of leaving the row out silently."""
+    return [f"{subject} `{condition}`: {reason}" for subject, failed in sorted(not_solved.items())
+            for condition, reason in failed.items()]
+
+
 def write_html(path: str | os.PathLike, rows: list[dict], figure6_path: Path, figure7_path: Path,
                frequency_note: str, configfiles: list[str], regions: list[dict] | None = None,
-               outside_settings: list[str] | None = None) -> Path:
-    """The evaluation's self-contained HTML page (figures embedded)."""
+               outside_settings: list[str] | None = None, not_solved: list[str] | None = None) -> Path:
+    """The evaluation's self-contained HTML page (figures embedded); ``not_solved``: lines of
+    :func:`not_solved_lines`."""
     from .subject import STYLE, _image  # noqa: PLC0415
 
     goals = goal_lines(rows)
@@ -559,6 +567,8 @@ def write_html(path: str | os.PathLike, rows: list[dict], figure6_path: Path, fi
              "<h2>Figure 6: scan to pinna distances (the paper's scale; the same on 0-1.5 mm)</h2>", _image(figure6_path),
              *_regions_html(rows, regions),
              "<h2>Summary</h2>", _table_html(rows, COLUMNS),
+             *(["<h2>Not solved</h2><ul>" + "".join(f"<li>{html.escape(line.replace('`', ''))}</li>"
+                                                   for line in not_solved) + "</ul>"] if not_solved else []),
              f"<p>Configuration: {html.escape(' '.join(configfiles) or 'config/config.yaml')}. "
              f"{html.escape(_outside_note(outside_settings))}</p></body></html>"]
     return write_text_atomic(path, "\n".join(parts) + "\n")
@@ -566,8 +576,9 @@ def write_html(path: str | os.PathLike, rows: list[dict], figure6_path: Path, fi
 
 def write_readme(path: str | os.PathLike, rows: list[dict], frequency_note: str, configfiles: list[str],
                  wall_clock_hours: float, regions: list[dict] | None = None,
-                 outside_settings: list[str] | None = None) -> Path:
-    """The evaluation folder's README: what was run, by which command, at what cost, and the numbers."""
+                 outside_settings: list[str] | None = None, not_solved: list[str] | None = None) -> Path:
+    """The evaluation folder's README: what was run, by which command, at what cost, and the numbers (and the
+    conditions that could not be built, ``not_solved``: lines of :func:`not_solved_lines`)."""
     command = "bash scripts/run.sh" + "".join(f" --configfile {c}" for c in configfiles)
     cpu = sum(r.get("solve_cpu_hours") or 0.0 for r in rows)
     outside = _outside_note(outside_settings)
@@ -596,11 +607,22 @@ Made by `{command}` (Snakemake; rules/evaluation.smk). Every number below is in 
 ## Results
 
 {_table_markdown(rows, SHORT_COLUMNS)}
-{_regions_markdown(rows, regions)}
+{_not_solved_markdown(not_solved)}{_regions_markdown(rows, regions)}
 Files: `summary.csv`, `regions.csv`, `report.html`, `figure6_distances.png`, `figure7_qe_pe.png`,
 `sofa/<subject>_<condition>_left_HRTF.sofa` (the solved left ear, SimpleFreeFieldHRTF).
 """
     return write_text_atomic(path, text)
+
+
+def _not_solved_markdown(not_solved: list[str] | None) -> str:
+    if not not_solved:
+        return ""
+    lines = "\n".join(f"- {line}" for line in not_solved)
+    return f"""
+Not solved (config `evaluation.not_solved`): the pipeline could not build these heads.
+
+{lines}
+"""
 
 
 def _paper_markdown(rows: list[dict]) -> str:

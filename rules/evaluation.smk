@@ -45,6 +45,7 @@ if EVALUATION_FOLDER:
         params:
             subjects=SUBJECTS,
             conditions={s: evaluation_conditions(s) for s in SUBJECTS},
+            not_solved={s: RUN.not_solved(s) for s in SUBJECTS},
             store=config["hrtf"]["step_store"],
             ppm_stores={s: store_of(s, "ppm") for s in SUBJECTS},
             configfiles=EVALUATION_CONFIGFILES,

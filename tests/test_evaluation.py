@@ -253,6 +253,17 @@ def test_figures_page_and_readme_of_an_evaluation(tmp_path, sonicom):
     readme = (tmp_path / "README.md").read_text()
     assert "Made by `bash scripts/run.sh --configfile config/paper_sonicom.yaml`" in readme
     assert "outside the repository (a clone has the repository's values instead): `/tmp/store.yaml: hrtf.step_store" in readme
+    # a head the pipeline could not build is a result: named with its reason, not left out silently
+    from reporting.evaluation import not_solved_lines  # noqa: PLC0415
+
+    failed = not_solved_lines({"S1": {"nricp_hard": "the stitch refuses its pinna"}, "S0": {}})
+    assert failed == ["S1 `nricp_hard`: the stitch refuses its pinna"]
+    write_readme(tmp_path / "README.md", rows, "40 frequencies", ["config/paper_sonicom.yaml"], 3.5, regions,
+                 not_solved=failed)
+    assert "- S1 `nricp_hard`: the stitch refuses its pinna" in (tmp_path / "README.md").read_text()
+    write_html(tmp_path / "report.html", rows, tmp_path / "figure6.png", tmp_path / "figure7.png", "40 frequencies",
+               ["config/paper_sonicom.yaml"], regions, not_solved=failed)
+    assert "<h2>Not solved</h2><ul><li>S1 nricp_hard: the stitch refuses its pinna</li>" in (tmp_path / "report.html").read_text()
 
 
 def test_where_a_missed_goal_comes_from_names_the_farthest_regions():

@@ -64,7 +64,10 @@ def test_the_paper_plan_reads_the_committed_step_store(in_root, sonicom):
     assert run.subjects == ["P039", "P067", "P143"]
     assert run.evaluation_conditions("P143") == ["original", "ppm", "own_pinna", "default_ppm", "ppm_detail",
                                                  "ppm_hard", "ppm_detail_hard", "nricp_hard"]
-    assert run.evaluation_conditions("P067") == ["original", "ppm", "own_pinna", "ppm_detail"]
+    assert run.evaluation_conditions("P067") == ["original", "ppm", "own_pinna", "ppm_detail", "ppm_hard",
+                                                 "ppm_detail_hard"]
+    assert list(run.not_solved("P067")) == ["nricp_hard"] and "2 holes" in run.not_solved("P067")["nricp_hard"]
+    assert run.not_solved("P143") == {}
     assert run.evaluation_conditions("P039") == ["original", "ppm", "own_pinna", "ppm_detail"]
     assert run.head_mesh_of("P143", "ppm_detail") == "evaluation/sonicom/steps/P143/ppm_detail/head.ply"
     # the PPM head is the one kept beside its solved steps, not a rebuild

@@ -41,7 +41,8 @@ def test_dry_run_with_hrtfs_plans_one_numcalc_job_per_ear_and_frequency_of_the_s
 
 def test_dry_run_of_the_evaluation_gives_each_control_only_to_its_listed_subjects(tmp_path, sonicom):
     """evaluation.own_pinna_subjects / default_ppm_subjects / ppm_detail_subjects / hard_subjects: the controls'
-    heads are planned only for those, the *_hard ones from one defective scan per subject."""
+    heads are planned only for those, the *_hard ones from one defective scan per subject; never a condition that
+    evaluation.not_solved says could not be built for the subject."""
     import re
 
     import yaml
@@ -52,7 +53,8 @@ def test_dry_run_of_the_evaluation_gives_each_control_only_to_its_listed_subject
     config["evaluation"].update(conditions=["ppm", "own_pinna", "default_ppm", "ppm_detail", "ppm_hard",
                                             "ppm_detail_hard", "nricp_hard"], folder="evaluation/x",
                                 own_pinna_subjects=["P143"], default_ppm_subjects=["P039"],
-                                ppm_detail_subjects=["P067"], hard_subjects=["P143"])
+                                ppm_detail_subjects=["P067"], hard_subjects=["P143", "P039"],
+                                not_solved={"P039": {"nricp_hard": "the stitch refused its pinna"}})
     (work / "config" / "test_controls.yaml").write_text(yaml.safe_dump(config))
     done = _run(["evaluation_report", "-n", "--cores", "2", "--configfile", "config/test_controls.yaml"], work)
     assert done.returncode == 0, done.stderr[-3000:]
@@ -60,8 +62,9 @@ def test_dry_run_of_the_evaluation_gives_each_control_only_to_its_listed_subject
     planned = set(re.findall(r"results/(P\d+)/hrtf/(\w+)/HRIR\.sofa", text))
     assert planned == {("P039", "ppm"), ("P067", "ppm"), ("P143", "ppm"), ("P143", "own_pinna"),
                        ("P039", "default_ppm"), ("P067", "ppm_detail"), ("P143", "ppm_hard"),
-                       ("P143", "ppm_detail_hard"), ("P143", "nricp_hard")}
-    assert set(re.findall(r"results/(P\d+)/controls/hard/scan\.ply", text)) == {"P143"}
+                       ("P143", "ppm_detail_hard"), ("P143", "nricp_hard"), ("P039", "ppm_hard"),
+                       ("P039", "ppm_detail_hard")}  # P039's nricp_hard: not solved
+    assert set(re.findall(r"results/(P\d+)/controls/hard/scan\.ply", text)) == {"P143", "P039"}
     assert "evaluation/x/hard_scans" in text
 
 

@@ -13,8 +13,8 @@ from mesh2hrtf_io.frequency_sets import describe_set  # noqa: E402
 from reporting.cost import subjects_timings  # noqa: E402
 from reporting.kept_fit import subject_fit_landmarks  # noqa: E402
 from reporting.paper_protocol import with_paper_columns  # noqa: E402
-from reporting.evaluation import (copy_hard_scans, copy_sofa, evaluation_rows, figure6, figure7, read_summary_csv,  # noqa: E402
-                                  region_rows, write_html, write_readme, write_regions_csv, write_summary_csv)
+from reporting.evaluation import (copy_hard_scans, copy_sofa, evaluation_rows, figure6, figure7, not_solved_lines,  # noqa: E402
+                                  read_summary_csv, region_rows, write_html, write_readme, write_regions_csv, write_summary_csv)
 
 inputs, out, params = snakemake.input, snakemake.output, snakemake.params  # noqa: F821
 subjects, conditions = list(params.subjects), dict(params.conditions)
@@ -41,7 +41,9 @@ figure7(rows, out.figure7)
 figure6(Path("results"), subjects, conditions, out.figure6)
 configfiles = list(params.configfiles)
 outside = list(params.outside_settings)
-write_html(out.html, rows, Path(out.figure6), Path(out.figure7), frequency_note, configfiles, regions, outside)
+not_solved = not_solved_lines(dict(params.not_solved))
+write_html(out.html, rows, Path(out.figure6), Path(out.figure7), frequency_note, configfiles, regions, outside,
+           not_solved)
 timings = subjects_timings("benchmarks/timings", subjects)
 wall_clock_h = sum(t.seconds for jobs in timings.values() for t in jobs) / 3600.0
-write_readme(out.readme, rows, frequency_note, configfiles, wall_clock_h, regions, outside)
+write_readme(out.readme, rows, frequency_note, configfiles, wall_clock_h, regions, outside, not_solved)

@@ -132,7 +132,12 @@ def replace_pinna(head: trimesh.Trimesh, pinna: trimesh.Trimesh, *, gap_mm: floa
     kept = trimesh.Trimesh(head.vertices, kept_faces, process=False)
     holes = boundary_loops(kept)
     if len(holes) != 1:
-        raise StitchError(f"{head_source}: cutting under the pinna left {len(holes)} holes instead of one; the pinna "
+        under = trimesh.Trimesh(head.vertices, head.faces[cut], process=False)
+        pieces = trimesh.graph.connected_components(under.face_adjacency, nodes=np.arange(len(under.faces)))
+        sizes = ", ".join(f"{len(p):,}" for p in sorted(pieces, key=len, reverse=True))
+        raise StitchError(f"{head_source}: cutting under the pinna left {len(holes)} holes instead of one: the head "
+                          f"under the rim of {pinna_source} falls into {len(pieces)} pieces ({sizes} faces), the "
+                          f"rim spanning z {rim_points[:, 2].min():.1f} to {rim_points[:, 2].max():.1f} mm; the pinna "
                           "rim does not enclose one simple region of the head (check its placement)")
     offset = len(head.vertices)
     vertices = np.vstack([head.vertices, pinna.vertices])

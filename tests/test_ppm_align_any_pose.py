@@ -144,3 +144,19 @@ def test_defect_levels_grow_harder(crop):
     assert missing.any() and np.median(crop.vertices[missing, 1]) < clean_y + 5.0
     posed = defective_scan(crop, levels()[0], rng, posed=True, unit="cm", mirrored=True)
     assert posed.mirrored and np.linalg.det(posed.truth_to_scan[:3, :3]) == pytest.approx(-1e-3)
+
+
+def test_a_resampled_scan_has_its_faces_in_one_order(crop):
+    """MeshLab's clustering returns its faces in a run-dependent order; the resampled scan's faces are put in one
+    order (each from its smallest vertex, rows sorted) without changing a triangle or its winding."""
+    from ppm.align.defects import canonical_faces, resample
+
+    rng = np.random.default_rng(3)
+    shuffled = crop.faces[rng.permutation(len(crop.faces))]
+    shuffled = np.stack([np.roll(face, int(k)) for face, k in zip(shuffled, rng.integers(0, 3, len(shuffled)))])
+    assert np.array_equal(canonical_faces(shuffled), canonical_faces(crop.faces))
+    coarse = resample(crop, 2.0)
+    assert np.array_equal(coarse.faces, canonical_faces(coarse.faces))
+    normals = trimesh.Trimesh(coarse.vertices, coarse.faces, process=False).face_normals
+    ordered = canonical_faces(coarse.faces[::-1])  # winding kept: the same normals, face for face
+    assert np.allclose(trimesh.Trimesh(coarse.vertices, ordered, process=False).face_normals, normals)

@@ -88,7 +88,17 @@ def resample(mesh: trimesh.Trimesh, spacing_mm: float) -> trimesh.Trimesh:
     meshes.meshing_decimation_clustering(threshold=pymeshlab.PureValue(spacing_mm))
     meshes.meshing_remove_unreferenced_vertices()
     out = meshes.current_mesh()
-    return trimesh.Trimesh(out.vertex_matrix(), out.face_matrix(), process=False)
+    return trimesh.Trimesh(out.vertex_matrix(), canonical_faces(out.face_matrix()), process=False)
+
+
+def canonical_faces(faces: np.ndarray) -> np.ndarray:
+    """The same triangles (same winding) in one order: each starts at its smallest vertex index, and the rows are
+    sorted. MeshLab's clustering returns its faces in an order that differs from run to run, so a scan drawn
+    with a fixed seed would otherwise differ in its file (and in what a fit sees first) though not in shape."""
+    faces = np.asarray(faces, dtype=np.int64)
+    start = np.argmin(faces, axis=1)
+    rolled = faces[np.arange(len(faces))[:, None], (start[:, None] + np.arange(3)) % 3]
+    return rolled[np.lexsort(rolled.T[::-1])]
 
 
 def cut_partially(mesh: trimesh.Trimesh, share: float, rng: np.random.Generator) -> trimesh.Trimesh:

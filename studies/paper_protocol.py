@@ -10,7 +10,8 @@ Reads committed files only (about a minute). With ``--update`` the paper's colum
 (reporting.paper_protocol.PAPER_COLUMNS) and Figure 7 are written anew from them, as the workflow's
 evaluation_report writes them. Last line (JSON): per subject S and, per condition, QE, PE and their differences from
 ``original`` (``delta_qe_pp``, ``delta_pe_deg``). ``--also SUBJECT/CONDITION`` judges a solve that is not in the
-evaluation yet the same way (``results/<subject>/hrtf/<condition>/HRTF.sofa``, the workflow's left-ear solve).
+evaluation yet the same way (``results/<subject>/hrtf/<condition>/HRTF.sofa``, the workflow's left-ear solve);
+``SUBJECT/CONDITION=FILE`` judges a left-ear HRTF kept elsewhere (e.g. ``studies/results/``).
 """
 from __future__ import annotations
 
@@ -30,8 +31,9 @@ def main() -> None:
     parser.add_argument("--hrir", default="hrir_mesh2hrtf_48k.sofa", help="the dataset's HRIRs in each subject folder")
     parser.add_argument("--update", action="store_true", help="write the paper's columns into summary.csv and "
                                                               "redraw figure7_qe_pe.png")
-    parser.add_argument("--also", nargs="+", default=[], metavar="SUBJECT/CONDITION",
-                        help="also judge results/<subject>/hrtf/<condition>/HRTF.sofa (not with --update)")
+    parser.add_argument("--also", nargs="+", default=[], metavar="SUBJECT/CONDITION[=FILE]",
+                        help="also judge results/<subject>/hrtf/<condition>/HRTF.sofa, or FILE (a left-ear HRTF "
+                             "SOFA), not with --update")
     args = parser.parse_args()
     if args.also and args.update:
         parser.error("--also judges solves outside the evaluation; it cannot be written into summary.csv")
@@ -44,8 +46,9 @@ def main() -> None:
     hrtfs = {(subject, condition): path for subject in subjects
              for condition, path in left_hrtf_files(args.evaluation / "sofa", subject).items()}
     for item in args.also:
-        subject, _, condition = item.partition("/")
-        path = ROOT / "results" / subject / "hrtf" / condition / "HRTF.sofa"
+        name, _, given = item.partition("=")
+        subject, _, condition = name.partition("/")
+        path = Path(given) if given else ROOT / "results" / subject / "hrtf" / condition / "HRTF.sofa"
         if subject not in subjects or not path.is_file():
             raise SystemExit(f"{path}: no such solve of a subject in {summary}; solve it with the workflow first")
         hrtfs[(subject, condition)] = path

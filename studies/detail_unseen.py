@@ -2,7 +2,7 @@
 a subject's hard scan, and its displacements split by whether the clean crop (the truth) near each PPM vertex was
 seen by the scan.
 
-    .venv/bin/python studies/detail_unseen.py [--subject P067]
+    .venv/bin/python studies/detail_unseen.py [--subject P067] [--set evidence_fade_mm=3 ...]
 
 Reads what the workflow makes for the ``*_hard`` conditions: the PPM fit of the fixed defective scan
 (``results/<subject>/controls/ppm_hard/align/aligned_pinna.blend``) and its prepared scan
@@ -12,18 +12,19 @@ The scan and the truth: ``evaluation/sonicom/hard_scans/<subject>_hard_scan.ply`
 ``pinna_left_crop.ply``. A crop point is *seen* when a scan point lies within ``SEEN_MM`` of it; each PPM vertex within
 ``NEAR_MM`` of the crop takes the mark of its nearest crop point. For the seen and the unseen vertices: how far the
 layer moves them, their distance to the truth without and with the layer (median, p95), and the share the layer
-takes more than 0.1 mm farther from the truth. The layer's settings are ``ppm/data/personal_detail.yaml``'s (a fresh
-layer, so a setting can be tried by editing that file). Millimetres, project frame. Last line: JSON.
+takes more than 0.1 mm farther from the truth. The layer's settings are ``ppm/data/personal_detail.yaml``'s, with
+``--set name=value`` (YAML values) replaced. Millimetres, project frame. Last line: JSON.
 """
 from __future__ import annotations
 
+import argparse
 import json
 import sys
 from pathlib import Path
 
 import numpy as np
 
-from committed import SONICOM, subject_arguments
+from committed import SONICOM
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
@@ -33,13 +34,21 @@ FARTHER_MM = 0.1
 
 
 def main() -> None:
-    args = subject_arguments(__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--evaluation", type=Path, default=ROOT / "evaluation" / "sonicom")
+    parser.add_argument("--subject", default="P143")
+    parser.add_argument("--set", nargs="+", default=[], metavar="NAME=VALUE",
+                        help="a setting of ppm/data/personal_detail.yaml replaced (YAML value)")
+    args = parser.parse_args()
+    import yaml  # noqa: PLC0415
+
+    overrides = {name: yaml.safe_load(value) for name, _, value in (item.partition("=") for item in args.set)}
     import bpy  # noqa: F401, PLC0415  (before anything that may load pymeshlab)
     import trimesh  # noqa: PLC0415
     from scipy.spatial import cKDTree  # noqa: PLC0415
 
     from ppm.align import prepare_target  # noqa: PLC0415
-    from ppm.align.detail import personal_detail  # noqa: PLC0415
+    from ppm.align.detail import DetailSettings, personal_detail  # noqa: PLC0415
     from ppm.model import PinnaModel  # noqa: PLC0415
 
     controls = ROOT / "results" / args.subject / "controls"
@@ -51,7 +60,7 @@ def main() -> None:
     model = PinnaModel.from_blend(str(blend))
     target = prepare_target(str(target_path), side="left", segment=False)
     posed = model.evaluate()
-    moved = personal_detail(posed, model.faces, target).displacement_mm
+    moved = personal_detail(posed, model.faces, target, DetailSettings.packaged(**overrides)).displacement_mm
     scan = trimesh.load(args.evaluation / "hard_scans" / f"{args.subject}_hard_scan.ply", process=False, force="mesh")
     crop = trimesh.load(SONICOM / args.subject / "pinna_left_crop.ply", process=False, force="mesh")
     crop_seen = cKDTree(scan.vertices).query(crop.vertices)[0] < SEEN_MM
@@ -59,7 +68,7 @@ def main() -> None:
     truth = trimesh.proximity.ProximityQuery(crop)
     before = np.abs(truth.signed_distance(posed))
     after = np.abs(truth.signed_distance(posed + moved))
-    figures = {"subject": args.subject, "seen_mm": SEEN_MM, "near_mm": NEAR_MM}
+    figures = {"subject": args.subject, "settings": overrides, "seen_mm": SEEN_MM, "near_mm": NEAR_MM}
     for label, chosen in (("seen", (gap < NEAR_MM) & crop_seen[nearest]), ("unseen", (gap < NEAR_MM) & ~crop_seen[nearest])):
         row = {"vertices": int(chosen.sum()),
                "moved_median_mm": round(float(np.median(np.linalg.norm(moved[chosen], axis=1))), 3),

@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 import trimesh
 
-from ppm.align.detail import (DetailSettings, closest_facing, closest_within, personal_detail, rim_taper, rim_vertices,
-                              surface_roughness_deg)
+from ppm.align.detail import (DetailSettings, closest_facing, closest_within, evidence_fade, personal_detail, rim_taper,
+                              rim_vertices, surface_roughness_deg)
 from ppm.align.synthetic import add_scan_defects
 from ppm.align.target import target_from_mesh
 from ppm.errors import PpmError
@@ -158,3 +158,26 @@ def test_the_roughness_guard_keeps_the_layer_off_a_noisy_scan_s_noise(posed):
     assert rough[10.0] <= own + 10.0 and runs[10.0].stages < len(DetailSettings.packaged().stiffness_mm2)
     assert off[10.0] < off[None]  # the truth is the PPM itself: the guarded layer strays less from it
 
+
+
+def test_the_evidence_fade_keeps_the_ppm_where_the_scan_saw_nothing(posed):
+    """A scan of the PPM's upper half pushed 0.5 mm out along its normals: without the fade the smooth field reaches
+    into the lower half the scan never saw; with evidence_fade_mm the vertices beyond twice it from any trusted pair
+    stay exactly where the PPM put them, and the seen half still takes the offset."""
+    line = np.stack([np.arange(6.0), np.zeros(6), np.zeros(6)], axis=1)
+    assert np.allclose(evidence_fade(line, np.arange(6) == 0, 2.0), [1.0, 1.0, 1.0, 0.5, 0.0, 0.0])
+    assert not evidence_fade(line, np.zeros(6, bool), 2.0).any()
+    vertices, faces, normals = posed
+    upper = vertices[:, 2] > np.median(vertices[:, 2])
+    shifted = trimesh.Trimesh(vertices + 0.5 * normals, faces, process=False)
+    shifted.update_faces(upper[faces].all(axis=1))
+    shifted.remove_unreferenced_vertices()
+    target = target_from_mesh(shifted, "upper half of the PPM, 0.5 mm out")
+    runs = {fade: personal_detail(vertices, faces, target, DetailSettings.packaged(evidence_fade_mm=fade))
+            for fade in (None, 2.0)}
+    below = vertices[:, 2] < np.median(vertices[:, 2]) - 10.0  # 10 mm and more below the scan's lower edge
+    size = {fade: np.linalg.norm(run.displacement_mm, axis=1) for fade, run in runs.items()}
+    seen = upper & (rim_taper(vertices, faces, 8.0) == 1.0) & (vertices[:, 2] > np.median(vertices[:, 2]) + 5.0)
+    assert np.median(size[None][below]) > 0.02 and size[None][below].max() > 0.08  # the field reaches past the scan
+    assert np.max(size[2.0][below]) == 0.0
+    assert abs(np.median(size[2.0][seen]) - 0.5) < 0.1

@@ -47,6 +47,7 @@ class DetailSettings:
     crease_limit_deg: float
     facing_pairs: bool = False
     roughness_limit_deg: float | None = None
+    evidence_fade_mm: float | None = None
 
     @classmethod
     def packaged(cls, **overrides) -> "DetailSettings":
@@ -229,6 +230,16 @@ def _trusted_pairs(points_mm: np.ndarray, normals: np.ndarray, closest: np.ndarr
     return trusted
 
 
+def evidence_fade(vertices_mm: np.ndarray, evidence: np.ndarray, fade_mm: float) -> np.ndarray:
+    """Per vertex, 1 within ``fade_mm`` (straight line, mm) of a vertex with evidence (``evidence``: bool per vertex),
+    falling linearly to 0 at twice that: the field kept near what the scan shows, the PPM's shape where it shows
+    nothing. All 0 when no vertex has evidence."""
+    if not evidence.any():
+        return np.zeros(len(vertices_mm))
+    distance = cKDTree(vertices_mm[evidence]).query(vertices_mm)[0]
+    return np.clip(2.0 - distance / fade_mm, 0.0, 1.0)
+
+
 def personal_detail(vertices_mm: np.ndarray, faces: np.ndarray, target: Target,
                     settings: DetailSettings | None = None) -> PersonalDetail:
     """The personal-detail layer of a posed PPM (``vertices_mm``, ``faces``: mm, project frame) on ``target``.
@@ -293,6 +304,11 @@ def personal_detail(vertices_mm: np.ndarray, faces: np.ndarray, target: Target,
             for axis in range(3):
                 displacement[free, axis] = solve(np.ascontiguousarray(wanted[free, axis]))
             displacement *= taper[:, None]
+            if settings.evidence_fade_mm is not None:
+                evidence = trusted.copy()
+                if settings.reverse_weight > 0:
+                    evidence[corners.ravel()] = True
+                displacement *= evidence_fade(vertices_mm, evidence, settings.evidence_fade_mm)[:, None]
         if stages and roughness_cap is not None and surface_roughness_deg(vertices_mm + displacement, faces) > roughness_cap:
             displacement, trusted = before  # this stage fits the scan's noise: keep the stiffer one before it
             break

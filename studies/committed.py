@@ -25,9 +25,15 @@ def committed_subject(evaluation: Path, subject: str,
     return settings, SONICOM / subject / settings["reference_sofa"], files
 
 
-def subject_arguments(description: str) -> argparse.Namespace:
-    """``--evaluation`` (the committed evaluation folder) and ``--subject`` (default P143) from the command line."""
+def subject_parser(description: str) -> argparse.ArgumentParser:
+    """A parser of ``--evaluation`` (the committed evaluation folder) and ``--subject`` (default P143), for a study
+    to add its own options to."""
     parser = argparse.ArgumentParser(description=description)
     parser.add_argument("--evaluation", type=Path, default=ROOT / "evaluation" / "sonicom")
     parser.add_argument("--subject", default="P143")
-    return parser.parse_args()
+    return parser
+
+
+def subject_arguments(description: str) -> argparse.Namespace:
+    """``--evaluation`` and ``--subject`` (:func:`subject_parser`) from the command line."""
+    return subject_parser(description).parse_args()

@@ -17,14 +17,13 @@ takes more than 0.1 mm farther from the truth. The layer's settings are ``ppm/da
 """
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 from pathlib import Path
 
 import numpy as np
 
-from committed import SONICOM
+from committed import SONICOM, subject_parser
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
@@ -34,9 +33,7 @@ FARTHER_MM = 0.1
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--evaluation", type=Path, default=ROOT / "evaluation" / "sonicom")
-    parser.add_argument("--subject", default="P143")
+    parser = subject_parser(__doc__.splitlines()[0])
     parser.add_argument("--set", nargs="+", default=[], metavar="NAME=VALUE",
                         help="a setting of ppm/data/personal_detail.yaml replaced (YAML value)")
     args = parser.parse_args()

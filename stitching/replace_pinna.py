@@ -74,11 +74,15 @@ def _covered_by_pinna(head: trimesh.Trimesh, pinna: trimesh.Trimesh, rim: np.nda
     return near_pinna & lateral & outline, centre, plane
 
 
+def _components(mesh: trimesh.Trimesh, faces: np.ndarray) -> list[np.ndarray]:
+    """The edge-connected parts of ``faces`` (face indices of ``mesh``), each as face indices of ``mesh``."""
+    part = trimesh.Trimesh(mesh.vertices, mesh.faces[faces], process=False)
+    return [faces[c] for c in trimesh.graph.connected_components(part.face_adjacency, nodes=np.arange(len(faces)))]
+
+
 def _largest_component(mesh: trimesh.Trimesh, faces: np.ndarray) -> np.ndarray:
     """The largest edge-connected part of ``faces`` (face indices of ``mesh``), sorted."""
-    part = trimesh.Trimesh(mesh.vertices, mesh.faces[faces], process=False)
-    components = trimesh.graph.connected_components(part.face_adjacency, nodes=np.arange(len(faces)))
-    return np.sort(faces[max(components, key=len)])
+    return np.sort(max(_components(mesh, faces), key=len))
 
 
 def own_pinna_region(head: trimesh.Trimesh, pinna: trimesh.Trimesh, *, inset_mm: float = 1.0,
@@ -132,8 +136,7 @@ def replace_pinna(head: trimesh.Trimesh, pinna: trimesh.Trimesh, *, gap_mm: floa
     kept = trimesh.Trimesh(head.vertices, kept_faces, process=False)
     holes = boundary_loops(kept)
     if len(holes) != 1:
-        under = trimesh.Trimesh(head.vertices, head.faces[cut], process=False)
-        pieces = trimesh.graph.connected_components(under.face_adjacency, nodes=np.arange(len(under.faces)))
+        pieces = _components(head, np.flatnonzero(cut))
         sizes = ", ".join(f"{len(p):,}" for p in sorted(pieces, key=len, reverse=True))
         raise StitchError(f"{head_source}: cutting under the pinna left {len(holes)} holes instead of one: the head "
                           f"under the rim of {pinna_source} falls into {len(pieces)} pieces ({sizes} faces), the "

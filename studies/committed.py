@@ -25,6 +25,17 @@ def committed_subject(evaluation: Path, subject: str,
     return settings, SONICOM / subject / settings["reference_sofa"], files
 
 
+def require_workflow_files(*paths: Path) -> None:
+    """Exit with the Snakemake command that makes them when any of ``paths`` (files the paper's workflow makes under
+    ``results/``) is missing."""
+    import sys
+
+    for path in paths:
+        if not path.is_file():
+            sys.exit(f"{path}: missing; make it with `.venv/bin/python -m snakemake --cores 2 --configfile "
+                     f"config/paper_sonicom.yaml -- {path.relative_to(ROOT)}`")
+
+
 def subject_parser(description: str) -> argparse.ArgumentParser:
     """A parser of ``--evaluation`` (the committed evaluation folder) and ``--subject`` (default P143), for a study
     to add its own options to."""

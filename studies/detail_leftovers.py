@@ -28,6 +28,8 @@ from pathlib import Path
 
 import numpy as np
 
+from committed import require_workflow_files
+
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
@@ -38,12 +40,10 @@ SEEN_MM = 2.0
 PPM_HEAD = {"ppm_detail": "ppm", "ppm_detail_hard": "ppm_hard"}
 
 
-def _target(path: Path, subject: str):
+def _target(path: Path):
     from ppm.align.target import prepare_target  # noqa: PLC0415
 
-    if not path.is_file():
-        sys.exit(f"{path}: missing; make it with `.venv/bin/python -m snakemake --cores 2 --configfile "
-                 f"config/paper_sonicom.yaml -- {path.relative_to(ROOT)}` ({subject})")
+    require_workflow_files(path)
     return prepare_target(path, side="left", segment=False)
 
 
@@ -61,7 +61,7 @@ def main() -> None:
     from reporting.pinna_regions import label_points  # noqa: PLC0415
 
     results = ROOT / "results" / args.subject
-    truth = _target(results / "target" / "pinna_target.ply", args.subject)
+    truth = _target(results / "target" / "pinna_target.ply")
     store = args.evaluation / "steps" / args.subject
     heads = {name: store / name / "head.ply" for name in (PPM_HEAD[args.condition], args.condition)}
     for name, path in heads.items():
@@ -79,7 +79,7 @@ def main() -> None:
     by_region = {str(r): int(n) for r, n in zip(*np.unique(regions[far], return_counts=True))}
     seen = np.ones(len(points), dtype=bool)
     if args.condition == "ppm_detail_hard":
-        scan = _target(results / "controls" / "hard" / "target" / "pinna_target.ply", args.subject)
+        scan = _target(results / "controls" / "hard" / "target" / "pinna_target.ply")
         seen = cKDTree(np.asarray(scan.points_mm)).query(points)[0] <= SEEN_MM
     limit = np.cos(np.deg2rad(DetailSettings.packaged().normal_agreement_deg))
     fails_normal = np.einsum("ij,ij->i", detailed.face_normals[triangle[far]], normals[far]) < limit

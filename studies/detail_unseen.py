@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from committed import SONICOM, subject_parser
+from committed import SONICOM, require_workflow_files, subject_parser
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
@@ -50,10 +50,7 @@ def main() -> None:
 
     controls = ROOT / "results" / args.subject / "controls"
     blend, target_path = controls / "ppm_hard" / "align" / "aligned_pinna.blend", controls / "hard" / "target" / "pinna_target.ply"
-    for path in (blend, target_path):
-        if not path.is_file():
-            sys.exit(f"{path}: missing; make it with `.venv/bin/python -m snakemake --cores 2 --configfile "
-                     f"config/paper_sonicom.yaml -- {path.relative_to(ROOT)}`")
+    require_workflow_files(blend, target_path)
     model = PinnaModel.from_blend(str(blend))
     target = prepare_target(str(target_path), side="left", segment=False)
     posed = model.evaluate()

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from committed import SONICOM, subject_parser
+from committed import SONICOM, require_workflow_files, subject_parser
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
@@ -37,10 +37,7 @@ def main() -> None:
 
     results = ROOT / "results" / args.subject
     blend, target_path = results / "align" / "aligned_pinna.blend", results / "target" / "pinna_target.ply"
-    for path in (blend, target_path):
-        if not path.is_file():
-            sys.exit(f"{path}: missing; make it with `.venv/bin/python -m snakemake --cores 2 --configfile "
-                     f"config/paper_sonicom.yaml -- {path.relative_to(ROOT)}`")
+    require_workflow_files(blend, target_path)
     model = PinnaModel.from_blend(str(blend))
     if model.detail_weight:
         model.set_detail_weight(0.0)

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from committed import SONICOM, subject_arguments
+from committed import SONICOM, require_workflow_files, subject_arguments
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
@@ -29,9 +29,7 @@ def main() -> None:
     from scipy.spatial import cKDTree  # noqa: PLC0415
 
     target_path = ROOT / "results" / args.subject / "target" / "pinna_target.ply"
-    if not target_path.is_file():
-        sys.exit(f"{target_path}: missing; make it with `.venv/bin/python -m snakemake --cores 2 --configfile "
-                 f"config/paper_sonicom.yaml -- results/{args.subject}/target/pinna_target.ply`")
+    require_workflow_files(target_path)
     tree = cKDTree(trimesh.load(target_path, process=False, force="mesh").vertices)
     heads = {"original": SONICOM / args.subject / "head_graded_left.ply"}
     heads |= {path.parent.name: path for path in sorted((args.evaluation / "steps" / args.subject).glob("*/head.ply"))}

@@ -6,9 +6,9 @@ subject's clean crop with the shipped settings and with ``evidence_fade_mm`` set
 Reads what the workflow makes for the ``ppm`` condition: the PPM fit of the clean crop
 (``results/<subject>/align/aligned_pinna.blend``) and its prepared scan (``results/<subject>/target/pinna_target.ply``);
 make them with ``.venv/bin/python -m snakemake --cores 2 --configfile config/paper_sonicom.yaml --
-results/<subject>/align/aligned_pinna.blend``. Prints, for the PPM's vertices, the share the fade holds back (weight
-below 1 at the layer's last pairs), how far the two layers differ (median, p99, max), and each one's distance to
-the clean crop (median, p95). Millimetres, project frame. Last line: JSON.
+results/<subject>/align/aligned_pinna.blend``. Prints the share of the PPM's vertices whose displacement the fade
+changes by more than 1 µm, how far the two layers differ (median, p99, max), and, for the PPM vertices within 5 mm of
+the clean crop, each layer's distance to it (median, p95). Millimetres, project frame. Last line: JSON.
 """
 from __future__ import annotations
 
@@ -50,11 +50,11 @@ def main() -> None:
     truth = trimesh.proximity.ProximityQuery(crop)
     near = np.abs(truth.signed_distance(posed)) < 5.0
     figures = {"subject": args.subject, "fade_mm": args.fade_mm, "vertices": len(posed),
-               "held_back_percent": round(float(np.mean(difference > 1e-3) * 100), 2),
+               "changed_percent": round(float(np.mean(difference > 1e-3) * 100), 2),
                "difference_median_mm": round(float(np.median(difference)), 4),
                "difference_p99_mm": round(float(np.percentile(difference, 99)), 4),
                "difference_max_mm": round(float(difference.max()), 4)}
-    print(f"{args.subject}: the {args.fade_mm:g} mm fade changes {figures['held_back_percent']:.2f} % of the "
+    print(f"{args.subject}: the {args.fade_mm:g} mm fade changes {figures['changed_percent']:.2f} % of the "
           f"{len(posed):,} PPM vertices by more than 1 µm; the layers differ by {figures['difference_median_mm']:.4f} "
           f"(median), {figures['difference_p99_mm']:.4f} (p99), {figures['difference_max_mm']:.4f} mm (max)")
     for label, layer in (("no fade", plain), (f"fade {args.fade_mm:g} mm", faded)):

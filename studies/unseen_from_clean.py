@@ -11,7 +11,9 @@ clean crop face is *unseen* when none of its corners has a scan point within ``S
 ``studies/detail_unseen.py``); those faces join the prepared scan as more evidence, and the layer (shipped settings)
 is laid on the PPM fit towards both. Writes ``aligned_pinna.ply`` (mm, project frame), ``aligned_pinna.blend`` and
 ``target.ply`` (the scan with the unseen parts) into ``--out-dir``: put the first two in place of
-``results/<subject>/controls/ppm_detail_hard/align/``'s and solve (docs/studies.md). Last line: JSON.
+``results/<subject>/controls/ppm_detail_hard/align/``'s and solve (studies/results/unseen_from_clean/README.md). Prints
+how far the clean crop lies from the new pinna: all of it (its skin ring past the PPM included, hence a large p95) and
+over the unseen parts. Last line: JSON.
 """
 from __future__ import annotations
 

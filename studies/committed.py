@@ -25,6 +25,23 @@ def committed_subject(evaluation: Path, subject: str,
     return settings, SONICOM / subject / settings["reference_sofa"], files
 
 
+#: A clean crop point counts as seen by a defective scan when one of the scan's points lies this close (mm): the hard
+#: level resamples to 2 mm and adds 0.5 mm of noise (ppm/data/scan_defects.yaml).
+SEEN_MM = 2.0
+
+
+def crop_seen_by_hard_scan(evaluation: Path, subject: str):
+    """The subject's clean left crop (the truth; trimesh, mm, project frame) and, per crop vertex, whether the
+    evaluation's fixed hard scan (``<evaluation>/hard_scans/<subject>_hard_scan.ply``) has a point within
+    :data:`SEEN_MM` of it."""
+    import trimesh
+    from scipy.spatial import cKDTree
+
+    scan = trimesh.load(evaluation / "hard_scans" / f"{subject}_hard_scan.ply", process=False, force="mesh")
+    crop = trimesh.load(SONICOM / subject / "pinna_left_crop.ply", process=False, force="mesh")
+    return crop, cKDTree(scan.vertices).query(crop.vertices)[0] < SEEN_MM
+
+
 def require_workflow_files(*paths: Path) -> None:
     """Exit with the Snakemake command that makes them when any of ``paths`` (files the paper's workflow makes under
     ``results/``) is missing."""

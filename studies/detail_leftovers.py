@@ -28,15 +28,12 @@ from pathlib import Path
 
 import numpy as np
 
-from committed import require_workflow_files
+from committed import SEEN_MM, require_workflow_files
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 FAR_MM = 1.0
-#: A clean point counts as seen by the defective scan when one of the scan's points lies this close (mm): the hard
-#: level resamples to 2 mm and adds 0.5 mm of noise (ppm/data/scan_defects.yaml).
-SEEN_MM = 2.0
 PPM_HEAD = {"ppm_detail": "ppm", "ppm_detail_hard": "ppm_hard"}
 
 

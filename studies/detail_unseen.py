@@ -9,7 +9,7 @@ Reads what the workflow makes for the ``*_hard`` conditions: the PPM fit of the 
 (``results/<subject>/controls/hard/target/pinna_target.ply``); make them with ``.venv/bin/python -m snakemake
 --cores 2 --configfile config/paper_sonicom.yaml -- results/<subject>/controls/ppm_hard/align/aligned_pinna.blend``.
 The scan and the truth: ``evaluation/sonicom/hard_scans/<subject>_hard_scan.ply`` and the dataset's
-``pinna_left_crop.ply``. A crop point is *seen* when a scan point lies within ``SEEN_MM`` of it; each PPM vertex within
+``pinna_left_crop.ply``. A crop point is *seen* when a scan point lies within ``committed.SEEN_MM`` (2 mm) of it; each PPM vertex within
 ``NEAR_MM`` of the crop takes the mark of its nearest crop point. For the seen and the unseen vertices: how far the
 layer moves them, their distance to the truth without and with the layer (median, p95), and the share the layer
 takes more than 0.1 mm farther from the truth. The layer's settings are ``ppm/data/personal_detail.yaml``'s, with
@@ -23,11 +23,10 @@ from pathlib import Path
 
 import numpy as np
 
-from committed import SONICOM, require_workflow_files, subject_parser
+from committed import SEEN_MM, crop_seen_by_hard_scan, require_workflow_files, subject_parser
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
-SEEN_MM = 2.0
 NEAR_MM = 5.0
 FARTHER_MM = 0.1
 
@@ -55,9 +54,7 @@ def main() -> None:
     target = prepare_target(str(target_path), side="left", segment=False)
     posed = model.evaluate()
     moved = personal_detail(posed, model.faces, target, DetailSettings.packaged(**overrides)).displacement_mm
-    scan = trimesh.load(args.evaluation / "hard_scans" / f"{args.subject}_hard_scan.ply", process=False, force="mesh")
-    crop = trimesh.load(SONICOM / args.subject / "pinna_left_crop.ply", process=False, force="mesh")
-    crop_seen = cKDTree(scan.vertices).query(crop.vertices)[0] < SEEN_MM
+    crop, crop_seen = crop_seen_by_hard_scan(args.evaluation, args.subject)
     gap, nearest = cKDTree(crop.vertices).query(posed)
     truth = trimesh.proximity.ProximityQuery(crop)
     before = np.abs(truth.signed_distance(posed))

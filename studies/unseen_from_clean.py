@@ -7,7 +7,7 @@ stitched and solved like the evaluation's ``ppm_detail_hard`` head.
 Reads what the workflow makes for the ``*_hard`` conditions: the PPM fit of the fixed defective scan
 (``results/<subject>/controls/ppm_hard/align/aligned_pinna.blend``) and its prepared scan
 (``results/<subject>/controls/hard/target/pinna_target.ply``), with the evaluation's hard scan and the clean crop. A
-clean crop face is *unseen* when none of its corners has a scan point within ``SEEN_MM`` (as
+clean crop face is *unseen* when none of its corners has a scan point within ``committed.SEEN_MM`` (2 mm, as
 ``studies/detail_unseen.py``); those faces join the prepared scan as more evidence, and the layer (shipped settings)
 is laid on the PPM fit towards both. Writes ``aligned_pinna.ply`` (mm, project frame), ``aligned_pinna.blend`` and
 ``target.ply`` (the scan with the unseen parts) into ``--out-dir``: put the first two in place of
@@ -23,11 +23,10 @@ from pathlib import Path
 
 import numpy as np
 
-from committed import SONICOM, require_workflow_files, subject_parser
+from committed import crop_seen_by_hard_scan, require_workflow_files, subject_parser
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
-SEEN_MM = 2.0
 
 
 def main() -> None:
@@ -36,7 +35,6 @@ def main() -> None:
     args = parser.parse_args()
     import bpy  # noqa: F401, PLC0415  (before anything that may load pymeshlab)
     import trimesh  # noqa: PLC0415
-    from scipy.spatial import cKDTree  # noqa: PLC0415
 
     from ppm.align import prepare_target  # noqa: PLC0415
     from ppm.align.detail import add_personal_detail  # noqa: PLC0415
@@ -46,10 +44,8 @@ def main() -> None:
     controls = ROOT / "results" / args.subject / "controls"
     blend, target_path = controls / "ppm_hard" / "align" / "aligned_pinna.blend", controls / "hard" / "target" / "pinna_target.ply"
     require_workflow_files(blend, target_path)
-    scan = trimesh.load(args.evaluation / "hard_scans" / f"{args.subject}_hard_scan.ply", process=False, force="mesh")
-    crop = trimesh.load(SONICOM / args.subject / "pinna_left_crop.ply", process=False, force="mesh")
+    crop, seen = crop_seen_by_hard_scan(args.evaluation, args.subject)
     prepared = trimesh.load(target_path, process=False, force="mesh")
-    seen = cKDTree(scan.vertices).query(crop.vertices)[0] < SEEN_MM
     unseen_faces = ~seen[crop.faces].any(axis=1)
     unseen_part = trimesh.Trimesh(crop.vertices, crop.faces[unseen_faces], process=False)
     unseen_part.remove_unreferenced_vertices()

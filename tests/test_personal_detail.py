@@ -159,7 +159,6 @@ def test_the_roughness_guard_keeps_the_layer_off_a_noisy_scan_s_noise(posed):
     assert off[10.0] < off[None]  # the truth is the PPM itself: the guarded layer strays less from it
 
 
-
 def test_the_evidence_fade_keeps_the_ppm_where_the_scan_saw_nothing(posed):
     """A scan of the PPM's upper half pushed 0.5 mm out along its normals: without the fade the smooth field reaches
     into the lower half the scan never saw; with evidence_fade_mm the vertices beyond twice it from any trusted pair

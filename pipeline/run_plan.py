@@ -18,9 +18,9 @@ import yaml
 #: Every HRTF variant of a subject: the reference listener, the unchanged head and the solved conditions; and a new
 #: listener's one head, "personal" (its subject is "listeners/<name>").
 HRTF_VARIANTS = ("reference", "original", "ppm", "own_pinna", "default_ppm", "ppm_detail", "ppm_hard", "ppm_detail_hard",
-                 "nricp_hard", "personal")
+                 "nricp_hard", "scan_hard", "personal")
 #: The control conditions (the own pinna put back; the template placed by the global pose only).
-CONTROLS = ("own_pinna", "default_ppm", "ppm_detail", "ppm_hard", "ppm_detail_hard", "nricp_hard")
+CONTROLS = ("own_pinna", "default_ppm", "ppm_detail", "ppm_hard", "ppm_detail_hard", "nricp_hard", "scan_hard")
 
 
 class RunConfigError(ValueError):
@@ -68,7 +68,7 @@ def check_embedded_backend(config: dict) -> None:
 def configfile_settings(configfiles: Iterable[str], workdir: Path) -> tuple[list[str], list[str]]:
     """How the evaluation was configured, for its README: the configfiles that lie in ``workdir`` (relative), and
     for each one outside it what it set ("path: key = value, ..."; a clone does not have such a file)."""
-    from reporting.evaluation import flat_settings  # noqa: PLC0415
+    from reporting.evaluation_pages import flat_settings  # noqa: PLC0415
 
     inside, outside = [], []
     for path in configfiles:
@@ -159,9 +159,10 @@ class RunPlan:
         """The pinna a control condition stitches onto the head (mm): the head's own pinna region (own_pinna),
         the PPM fit with its personal-detail layer (ppm_detail), the same three from the subject's fixed defective
         scan (ppm_hard, ppm_detail_hard, nricp_hard: the template deformed by free-form NRICP) or the template
-        placed by the global pose only (default_ppm)."""
-        if control == "own_pinna":
-            return f"results/{subject}/controls/own_pinna/pinna.ply"
+        placed by the global pose only (default_ppm); for scan_hard, the defective scan itself made watertight by
+        screened Poisson reconstruction, cut under the rim of ppm_hard's pinna (:mod:`stitching.reconstruction`)."""
+        if control in ("own_pinna", "scan_hard"):
+            return f"results/{subject}/controls/{control}/pinna.ply"
         if control in ("ppm_detail", "ppm_hard", "ppm_detail_hard", "nricp_hard"):
             return f"results/{subject}/controls/{control}/align/aligned_pinna.ply"
         return f"results/{subject}/controls/default_ppm/align/aligned_pinna.ply"
@@ -239,7 +240,7 @@ class RunPlan:
             return [f"results/{subject}/hrtf/embedded.json"]
         base = f"results/{subject}/hrtf/{variant}/steps"
         per_job = self.hrtf["steps_per_job"]
-        parts = (self.band_steps() + [self.full_mesh_steps()] if self.banded(variant)
+        parts = (self.band_steps() + [self.full_mesh_steps()] if self.banded(variant, subject)
                  else [list(range(1, len(self.frequencies()) + 1))])
         ranges = [(part[k], part[min(k + per_job, len(part)) - 1]) for part in parts if part
                   for k in range(0, len(part), per_job)]
@@ -251,11 +252,15 @@ class RunPlan:
         """hrtf.frequency_bands.bands: [{up_to_hz, edges_mm}, ...] from the lowest band up."""
         return (self.hrtf.get("frequency_bands") or {}).get("bands") or []
 
-    def banded(self, variant: str) -> bool:
-        """Whether a variant's head is solved on a mesh per frequency band (NumCalc, listed in
-        hrtf.frequency_bands.variants, and bands given)."""
-        listed = (self.hrtf.get("frequency_bands") or {}).get("variants") or []
-        return self.hrtf["solver"] == "numcalc" and variant in listed and bool(self.frequency_bands)
+    def banded(self, variant: str, subject: str | None = None) -> bool:
+        """Whether a variant's head (of ``subject``, where given) is solved on a mesh per frequency band (NumCalc,
+        listed in hrtf.frequency_bands.variants, bands given, and the subject's head not kept on its full mesh by
+        hrtf.frequency_bands.full_mesh_heads, as heads solved before a variant was banded are)."""
+        settings = self.hrtf.get("frequency_bands") or {}
+        listed = settings.get("variants") or []
+        kept_full = subject is not None and variant in ((settings.get("full_mesh_heads") or {}).get(subject) or [])
+        return (self.hrtf["solver"] == "numcalc" and variant in listed and bool(self.frequency_bands)
+                and not kept_full)
 
     def _check_frequency_bands(self) -> None:
         if not any(self.banded(v) for v in HRTF_VARIANTS):
@@ -286,9 +291,9 @@ class RunPlan:
         top = self.frequency_bands[-1]["up_to_hz"] if self.frequency_bands else 0.0
         return [i + 1 for i, f in enumerate(self.frequencies()) if f > top]
 
-    def band_of_step(self, variant: str, step: int) -> int | None:
-        """The frequency band (1-based) whose mesh solves a step of a variant, None for the full mesh."""
-        if not self.banded(variant):
+    def band_of_step(self, subject: str, variant: str, step: int) -> int | None:
+        """The frequency band (1-based) whose mesh solves a step of a subject's variant, None for the full mesh."""
+        if not self.banded(variant, subject):
             return None
         for band, steps in enumerate(self.band_steps(), start=1):
             if step in steps:
@@ -308,15 +313,15 @@ class RunPlan:
 
     def step_project(self, subject: str, variant: str, first: int) -> str:
         """The project a NumCalc job starting at step ``first`` solves."""
-        return self.project_of(subject, variant, self.band_of_step(variant, first))
+        return self.project_of(subject, variant, self.band_of_step(subject, variant, first))
 
     def step_store(self, subject: str, variant: str, first: int) -> str | None:
         """The store of the steps of a NumCalc job starting at step ``first``."""
-        return self.band_store_of(subject, variant, self.band_of_step(variant, first))
+        return self.band_store_of(subject, variant, self.band_of_step(subject, variant, first))
 
     def band_projects(self, subject: str, variant: str) -> dict[str, list[int]]:
         """Each band project of a banded variant with its steps (empty for a variant on one mesh)."""
-        if not self.banded(variant):
+        if not self.banded(variant, subject):
             return {}
         return {self.project_of(subject, variant, band): steps
                 for band, steps in enumerate(self.band_steps(), start=1) if steps}
@@ -489,6 +494,9 @@ class RunPlan:
                 inputs[f"{subject}_{condition}_hrtf"] = f"results/{subject}/hrtf/{condition}/HRTF.sofa"
                 inputs[f"{subject}_{condition}_head"] = self.head_mesh_of(subject, condition)
                 inputs[f"{subject}_{condition}_steps"] = self.steps_of(subject, condition)
+        # the measured non-individual sets judged beside the conditions (reporting.nonindividual)
+        for entry in self.config["evaluation"].get("nonindividual") or []:
+            inputs[f"nonindividual_{entry['name']}"] = entry["file"]
         return inputs
 
     def subject_report_inputs(self, subject: str) -> dict:
@@ -624,7 +632,7 @@ class RunPlan:
             for variant in self.solved_variants(subject):
                 heads.append((subject, variant))
                 projects[(subject, variant)] = self.project_of(subject, variant)
-                if self.banded(variant):
+                if self.banded(variant, subject):
                     steps[(subject, variant)] = self.full_mesh_steps()
                     for band, band_steps in enumerate(self.band_steps(), start=1):
                         part = (subject, f"{variant}/band_{band}")

@@ -89,7 +89,7 @@ def solve_costs(results: str | os.PathLike, timings: list[StageTiming]) -> list[
     embedded_rss = [t.max_rss_mb for t in timings if t.rule == "solve_embedded" and t.max_rss_mb is not None]
     rows = []
     for variant in ("reference", "original", "ppm", "own_pinna", "default_ppm", "ppm_detail", "ppm_hard", "ppm_detail_hard",
-                    "nricp_hard"):
+                    "nricp_hard", "scan_hard"):
         project = Path(results) / "hrtf" / variant / "project"
         if not project.is_dir():
             continue

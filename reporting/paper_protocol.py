@@ -28,7 +28,7 @@ def paper_protocol(reference_hrtf: str | os.PathLike, conditions: dict[str, str 
     from amt_bridge.hrtf_set import read_hrtf_set, read_one_ear_completed, resampled_at  # noqa: PLC0415
     from amt_bridge.model import LocalisationModel  # noqa: PLC0415
 
-    frequencies = np.asarray(sofar.read_sofa(str(reference_hrtf), verify=False).N)
+    frequencies = np.asarray(sofar.read_sofa(str(reference_hrtf), verify=False, verbose=False).N)
     dataset = resampled_at(read_hrtf_set(dataset_hrir), frequencies)
     template = read_one_ear_completed(reference_hrtf, "left", dataset)
     model = LocalisationModel(template, template, list(LATERAL_ANGLES_DEG))

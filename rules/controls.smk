@@ -196,3 +196,26 @@ rule remesh_control:
         runtime=measured_runtime("remesh"),
     script:
         "../workflow/scripts/remesh_head.py"
+
+
+# scan_hard: the fixed defective scan itself made watertight as a careful user would (outlier removal and screened
+# Poisson reconstruction in pymeshlab, stitching/data/scan_reconstruction.yaml), cut under the rim of ppm_hard's
+# pinna so that it replaces the same region of the head; then stitched, remeshed and solved like every condition.
+rule scan_hard_pinna:
+    input:
+        scan="results/{subject}/controls/hard/scan.ply",
+        guide="results/{subject}/controls/ppm_hard/align/aligned_pinna.ply",
+    output:
+        pinna="results/{subject}/controls/scan_hard/pinna.ply",
+        surface="results/{subject}/controls/scan_hard/reconstruction.ply",
+        report="results/{subject}/controls/scan_hard/reconstruction.json",
+    log:
+        "logs/controls/scan_hard_pinna/{subject}.log",
+    benchmark:
+        "benchmarks/timings/controls/scan_hard_pinna/{subject}.tsv"
+    threads: 1
+    resources:
+        mem_mb=measured_mem_mb("scan_hard_pinna"),
+        runtime=measured_runtime("scan_hard_pinna"),
+    script:
+        "../workflow/scripts/scan_pinna.py"

@@ -1,6 +1,7 @@
 # The dataset evaluation (config evaluation.folder): per subject and condition the target <-> model distances
-# of the condition's solved head (its pinna after stitching and remeshing); then summary.csv, the left-ear HRTFs of every condition, the paper's Figures 6 and
-# 7, an HTML report and a README, all in the evaluation folder (kept in the repository).
+# of the condition's solved head (its pinna after stitching and remeshing); then summary.csv, the ranking of every
+# condition beside the non-individual sets (ranking.csv), the left-ear HRTFs of every condition, the paper's Figures 6
+# and 7, an HTML report and a README, all in the evaluation folder (kept in the repository).
 
 
 rule condition_distances:
@@ -32,6 +33,7 @@ if EVALUATION_FOLDER:
         output:
             summary=f"{EVALUATION_FOLDER}/summary.csv",
             regions=f"{EVALUATION_FOLDER}/regions.csv",
+            ranking=f"{EVALUATION_FOLDER}/ranking.csv",
             html=f"{EVALUATION_FOLDER}/report.html",
             readme=f"{EVALUATION_FOLDER}/README.md",
             figure6=f"{EVALUATION_FOLDER}/figure6_distances.png",
@@ -50,6 +52,7 @@ if EVALUATION_FOLDER:
             ppm_stores={s: store_of(s, "ppm") for s in SUBJECTS},
             configfiles=EVALUATION_CONFIGFILES,
             outside_settings=EVALUATION_OUTSIDE_SETTINGS,
+            nonindividual=config["evaluation"].get("nonindividual") or [],
         threads: 1
         resources:
             mem_mb=measured_mem_mb("evaluation_report"),

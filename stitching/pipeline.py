@@ -53,6 +53,32 @@ def own_pinna_files(head_path: str | os.PathLike, pinna_path: str | os.PathLike,
     return report
 
 
+def scan_pinna_files(scan_path: str | os.PathLike, guide_path: str | os.PathLike, out_mesh: str | os.PathLike,
+                     out_report: str | os.PathLike, out_surface: str | os.PathLike | None = None) -> dict:
+    """The scan itself as the pinna (the scan_hard condition): a defective scan (mm, head frame) made watertight by
+    outlier removal and screened Poisson reconstruction (:mod:`stitching.reconstruction`), trimmed, and cut under
+    the rim of ``guide_path`` (the PPM fitted to the same scan), as the head's own pinna is for own_pinna; so both
+    replace the same region of the head. ``out_surface`` keeps the whole trimmed reconstruction."""
+    from .reconstruction import poisson_surface, reconstruction_settings  # noqa: PLC0415
+
+    start = time.perf_counter()
+    scan, guide = _load(scan_path, "scan"), _load(guide_path, "guide pinna")
+    reconstruction = poisson_surface(scan, source=str(scan_path))
+    try:
+        region = own_pinna_region(reconstruction.surface, guide, pinna_source=str(guide_path))
+    except StitchError as error:
+        raise StitchError(f"{scan_path}: its screened Poisson reconstruction cannot be cut to a pinna under the rim of "
+                          f"{guide_path}: {error}") from error
+    report = {"scan": str(scan_path), "guide_pinna": str(guide_path), **reconstruction.report(),
+              "settings": reconstruction_settings(), "n_triangles": int(len(region.faces)),
+              "area_mm2": round(float(region.area), 1), "seconds": round(time.perf_counter() - start, 2)}
+    if out_surface is not None:
+        write_mesh(out_surface, reconstruction.surface.vertices, reconstruction.surface.faces)
+    write_mesh(out_mesh, region.vertices, region.faces)
+    write_text_atomic(out_report, json.dumps(report, indent=2) + "\n")
+    return report
+
+
 def stitch_files(head_path: str | os.PathLike, pinna_path: str | os.PathLike, out_mesh: str | os.PathLike,
                  out_report: str | os.PathLike, gap_mm: float = 1.5,
                  right_pinna_path: str | os.PathLike | None = None) -> dict:

@@ -16,7 +16,7 @@ def committed_subject(evaluation: Path, subject: str,
     ``original``) is there."""
     import yaml
 
-    from reporting.evaluation import left_hrtf_files
+    from reporting.evaluation_files import left_hrtf_files
 
     settings = yaml.safe_load((ROOT / "config" / "config.yaml").read_text())["localisation"]
     files = left_hrtf_files(evaluation / "sofa", subject)

@@ -76,7 +76,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--evaluation", type=Path, default=ROOT / "evaluation" / "sonicom")
     args = parser.parse_args()
-    from reporting.evaluation import left_hrtf_name
+    from reporting.evaluation_files import left_hrtf_name
 
     rows = list(csv.DictReader((args.evaluation / "summary.csv").open()))
     figures = {}

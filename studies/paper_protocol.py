@@ -37,7 +37,8 @@ def main() -> None:
     args = parser.parse_args()
     if args.also and args.update:
         parser.error("--also judges solves outside the evaluation; it cannot be written into summary.csv")
-    from reporting.evaluation import figure7, left_hrtf_files, read_summary_csv, write_summary_csv  # noqa: PLC0415
+    from reporting.evaluation_figures import figure7  # noqa: PLC0415
+    from reporting.evaluation_files import left_hrtf_files, read_summary_csv, write_summary_csv  # noqa: PLC0415
     from reporting.paper_protocol import with_paper_columns  # noqa: PLC0415
 
     summary = args.evaluation / "summary.csv"

@@ -35,7 +35,7 @@ def main() -> None:
     import yaml
 
     from amt_bridge.evaluation import compare_conditions
-    from reporting.evaluation import left_hrtf_files
+    from reporting.evaluation_files import left_hrtf_files
 
     settings = yaml.safe_load((ROOT / "config" / "config.yaml").read_text())["localisation"]
     figures: dict = {"conditions": {}}

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 import trimesh
 
-from reporting.evaluation import (COLUMNS, GOALS, condition_distances, evaluation_rows, goal_lines, read_summary_csv,
-                                  write_summary_csv)
+from reporting.evaluation import COLUMNS, GOALS, condition_distances, evaluation_rows, goal_lines
+from reporting.evaluation_files import read_summary_csv, write_summary_csv
 
 from conftest import ROOT
 
@@ -133,7 +133,7 @@ def test_the_committed_sonicom_evaluation_parses_and_its_readme_follows_the_summ
     # where the geometry differs: regions.csv parses, covers every solved condition, and the README's lines follow
     import csv
 
-    from reporting.evaluation import where_lines
+    from reporting.evaluation_regions import where_lines
 
     regions = [{**r, "points": int(r["points"]), **{k: float(r[k]) for k in ("median_mm", "p95_mm", "over_1mm_percent")}}
                for r in csv.DictReader((COMMITTED / "regions.csv").open())]
@@ -207,7 +207,8 @@ def test_the_paper_protocol_columns_recomputed_from_the_committed_sofa_files_are
 def test_figures_page_and_readme_of_an_evaluation(tmp_path, sonicom):
     """Figure 6 (scan coloured by distance + histograms), Figure 7 (QE/PE bars), the HTML page and the README
     from rows and per-point distances; the README's table holds the rows' numbers and the goals' verdicts."""
-    from reporting.evaluation import figure6, figure7, write_html, write_readme
+    from reporting.evaluation_figures import figure6, figure7
+    from reporting.evaluation_pages import write_html, write_readme
 
     results = tmp_path / "results"
     scan = trimesh.load(sonicom / "P143" / "pinna_left_crop.ply", process=False, force="mesh")
@@ -244,7 +245,7 @@ def test_figures_page_and_readme_of_an_evaluation(tmp_path, sonicom):
     assert "Made by `bash scripts/run.sh --configfile config/paper_sonicom.yaml`" in readme
     assert "| S1 | ppm | 9.000 | 31.000 | 1.000 | 1.000 | 0.500 |" in readme and "4.10 CPU hours" in readme
     # a configfile from outside the repository is not in the command (a clone lacks it); its settings are spelled out
-    from reporting.evaluation import flat_settings  # noqa: PLC0415
+    from reporting.evaluation_pages import flat_settings  # noqa: PLC0415
 
     assert flat_settings({"hrtf": {"step_store": "/x/steps", "ears": "left"}, "seed": 1}) == [
         ("hrtf.step_store", "/x/steps"), ("hrtf.ears", "left"), ("seed", 1)]
@@ -254,7 +255,7 @@ def test_figures_page_and_readme_of_an_evaluation(tmp_path, sonicom):
     assert "Made by `bash scripts/run.sh --configfile config/paper_sonicom.yaml`" in readme
     assert "outside the repository (a clone has the repository's values instead): `/tmp/store.yaml: hrtf.step_store" in readme
     # a head the pipeline could not build is a result: named with its reason, not left out silently
-    from reporting.evaluation import not_solved_lines  # noqa: PLC0415
+    from reporting.evaluation_pages import not_solved_lines  # noqa: PLC0415
 
     failed = not_solved_lines({"S1": {"nricp_hard": "the stitch refuses its pinna"}, "S0": {}})
     assert failed == ["S1 `nricp_hard`: the stitch refuses its pinna"]
@@ -269,7 +270,7 @@ def test_figures_page_and_readme_of_an_evaluation(tmp_path, sonicom):
 def test_where_a_missed_goal_comes_from_names_the_farthest_regions():
     """A condition that misses its goal is traced to the two pinna regions farthest from the scan, not to the
     surroundings; a condition that meets it gets no line."""
-    from reporting.evaluation import where_lines
+    from reporting.evaluation_regions import where_lines
 
     rows = [{"subject": "S1", "condition": "ppm", "delta_qe_pp": 6.2, "delta_pe_deg": 4.1, "distance_median_mm": 0.27},
             {"subject": "S2", "condition": "ppm", "delta_qe_pp": 0.5, "delta_pe_deg": 0.4, "distance_median_mm": 0.2}]
@@ -300,7 +301,8 @@ def test_goals_by_the_papers_protocol_lead_and_a_hard_condition_must_come_nearer
     """By the paper's protocol (delta_*_paper against original): the verdict per goal condition, and for
     ppm_detail_hard whether it comes nearer original than ppm_hard and nricp_hard; where the paper's deltas exist,
     the misses traced to regions are the paper's."""
-    from reporting.evaluation import paper_goal_lines, where_lines
+    from reporting.evaluation import paper_goal_lines
+    from reporting.evaluation_regions import where_lines
 
     def row(condition, qe, pe, paper_qe, paper_pe):
         return {"subject": "S1", "condition": condition, "delta_qe_pp": qe, "delta_pe_deg": pe,

@@ -1,0 +1,101 @@
+"""A defective ear scan made watertight by a standard tool: MeshLab's outlier selection and screened Poisson
+surface reconstruction (through pymeshlab), then trimmed where the surface lies far from every scan point
+(millimetres, head frame: +x front, +y left, +z up).
+
+It is what a careful user does before putting a scan on a head, and the baseline the PPM must beat from a
+defective scan (the ``scan_hard`` condition; ``poisson`` in ``benchmarks/align_defects.py``). The settings
+live in ``stitching/data/scan_reconstruction.yaml``.
+"""
+from __future__ import annotations
+
+import dataclasses
+from functools import lru_cache
+from importlib import resources
+
+import numpy as np
+import trimesh
+import yaml
+from scipy.spatial import cKDTree
+
+from .errors import StitchError
+
+
+@lru_cache(maxsize=1)
+def reconstruction_settings() -> dict:
+    """The parsed ``stitching/data/scan_reconstruction.yaml``."""
+    text = resources.files("stitching").joinpath("data/scan_reconstruction.yaml").read_text(encoding="utf-8")
+    return yaml.safe_load(text)
+
+
+@dataclasses.dataclass(frozen=True)
+class Reconstruction:
+    """The watertight reconstruction of a scan, untrimmed (``closed``) and trimmed (``surface``), in mm, with
+    how many scan vertices the outlier selection deleted."""
+
+    closed: trimesh.Trimesh
+    surface: trimesh.Trimesh
+    outliers_removed: int
+    scan_vertices: int
+
+    def report(self) -> dict:
+        return {"scan_vertices": self.scan_vertices, "outliers_removed": self.outliers_removed,
+                "poisson_faces": int(len(self.closed.faces)), "trimmed_faces": int(len(self.surface.faces)),
+                "trimmed_area_mm2": round(float(self.surface.area), 1)}
+
+
+def _check_scan(scan: trimesh.Trimesh, source: str) -> None:
+    vertices = np.asarray(scan.vertices)
+    if len(vertices) < 100 or len(scan.faces) == 0:
+        raise StitchError(f"{source}: {len(vertices)} vertices and {len(scan.faces)} triangles are too few for a "
+                          "surface reconstruction; give the scan as a triangle mesh (PLY/STL/OBJ) in mm")
+    if not np.isfinite(vertices).all():
+        raise StitchError(f"{source}: the scan holds NaN or inf coordinates; drop those vertices first")
+    extent = float(np.linalg.norm(np.ptp(vertices, axis=0)))
+    if not 20.0 <= extent <= 400.0:
+        raise StitchError(f"{source}: the scan is {extent:.3g} units across; an ear crop is 50-200 mm: give it in "
+                          "millimetres (a scan in metres must be scaled by 1000)")
+
+
+def poisson_surface(scan: trimesh.Trimesh, settings: dict | None = None, source: str = "scan") -> Reconstruction:
+    """Outlier removal and screened Poisson reconstruction of ``scan`` (a triangle mesh in mm), then the trim
+    of ``settings["trim_mm"]`` (default: :func:`reconstruction_settings`). Import bpy before this in a process
+    that uses both (pymeshlab ships an older Embree)."""
+    import pymeshlab  # noqa: PLC0415
+
+    settings = settings or reconstruction_settings()
+    _check_scan(scan, source)
+    meshes = pymeshlab.MeshSet()
+    meshes.add_mesh(pymeshlab.Mesh(vertex_matrix=np.asarray(scan.vertices, np.float64),
+                                   face_matrix=np.asarray(scan.faces, np.int32)))
+    outliers = settings["outliers"]
+    meshes.compute_selection_point_cloud_outliers(propthreshold=float(outliers["probability_threshold"]),
+                                                  knearest=int(outliers["k_nearest"]))
+    removed = int(meshes.current_mesh().selected_vertex_number())
+    meshes.meshing_remove_selected_vertices()
+    meshes.meshing_remove_unreferenced_vertices()
+    kept = np.array(meshes.current_mesh().vertex_matrix())
+    meshes.compute_normal_per_vertex()
+    poisson = settings["poisson"]
+    meshes.generate_surface_reconstruction_screened_poisson(depth=int(poisson["depth"]),
+                                                            preclean=bool(poisson["preclean"]))
+    result = meshes.current_mesh()
+    closed = trimesh.Trimesh(np.array(result.vertex_matrix()), np.array(result.face_matrix()), process=False)
+    if len(closed.faces) == 0:
+        raise StitchError(f"{source}: screened Poisson reconstruction gave no surface (too few points with normals)")
+    return Reconstruction(closed, trimmed_near(closed, kept, float(settings["trim_mm"]), source), removed,
+                          int(len(scan.vertices)))
+
+
+def trimmed_near(surface: trimesh.Trimesh, points: np.ndarray, trim_mm: float, source: str = "scan") -> trimesh.Trimesh:
+    """``surface`` without the faces whose centre lies farther than ``trim_mm`` from every point of ``points``
+    (mm), its largest edge-connected piece."""
+    distance = cKDTree(np.asarray(points)).query(surface.triangles_center)[0]
+    near = np.flatnonzero(distance <= trim_mm)
+    if near.size == 0:
+        raise StitchError(f"{source}: no reconstructed face lies within {trim_mm} mm of a scan point")
+    part = trimesh.Trimesh(surface.vertices, surface.faces[near], process=False)
+    pieces = trimesh.graph.connected_components(part.face_adjacency, nodes=np.arange(len(near)))
+    largest = np.sort(max(pieces, key=len))
+    out = trimesh.Trimesh(surface.vertices, surface.faces[near[largest]], process=False)
+    out.remove_unreferenced_vertices()
+    return out

@@ -14,6 +14,31 @@ from trimesh.grouping import group_rows
 from .errors import StitchError
 
 
+def bowtie_vertices(mesh: trimesh.Trimesh) -> np.ndarray:
+    """Vertices where boundary loops touch (more than one boundary edge leaves them in the faces' winding)."""
+    edges = mesh.edges
+    directed = edges[group_rows(np.sort(edges, axis=1), require_count=1)]
+    starts, counts = np.unique(directed[:, 0], return_counts=True) if len(directed) else (np.empty(0, int), [])
+    return starts[np.asarray(counts) > 1]
+
+
+def without_bowties(mesh: trimesh.Trimesh, rounds: int = 20) -> trimesh.Trimesh:
+    """``mesh`` with the faces at its bow-tie vertices (:func:`bowtie_vertices`) cut away, its largest edge-connected
+    piece kept, until none is left: a region cut from a fine surface by a vertex mask (e.g. a reconstruction under
+    a pinna's rim) leaves faces that touch the rest by one vertex only."""
+    for _ in range(rounds):
+        bad = bowtie_vertices(mesh)
+        if bad.size == 0:
+            return mesh
+        kept = np.flatnonzero(~np.isin(mesh.faces, bad).any(axis=1))
+        part = trimesh.Trimesh(mesh.vertices, mesh.faces[kept], process=False)
+        pieces = trimesh.graph.connected_components(part.face_adjacency, nodes=np.arange(len(kept)))
+        mesh = trimesh.Trimesh(mesh.vertices, mesh.faces[kept[np.sort(max(pieces, key=len))]], process=False)
+        mesh.remove_unreferenced_vertices()
+    raise StitchError(f"the region keeps {len(bowtie_vertices(mesh))} bow-tie vertices after {rounds} rounds of "
+                      "cleaning; the surface is not a manifold there")
+
+
 def boundary_loops(mesh: trimesh.Trimesh) -> list[np.ndarray]:
     """Ordered vertex loops of the boundary edges, following the faces' winding (each boundary edge is
     used in the direction its face traverses it), longest first."""

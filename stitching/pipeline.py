@@ -56,16 +56,18 @@ def own_pinna_files(head_path: str | os.PathLike, pinna_path: str | os.PathLike,
 def scan_pinna_files(scan_path: str | os.PathLike, guide_path: str | os.PathLike, out_mesh: str | os.PathLike,
                      out_report: str | os.PathLike, out_surface: str | os.PathLike | None = None) -> dict:
     """The scan itself as the pinna (the scan_hard condition): a defective scan (mm, head frame) made watertight by
-    outlier removal and screened Poisson reconstruction (:mod:`stitching.reconstruction`), trimmed, and cut under
-    the rim of ``guide_path`` (the PPM fitted to the same scan), as the head's own pinna is for own_pinna; so both
-    replace the same region of the head. ``out_surface`` keeps the whole trimmed reconstruction."""
+    outlier removal and screened Poisson reconstruction (:mod:`stitching.reconstruction`) and cut under the rim of
+    ``guide_path`` (the PPM fitted to the same scan), as the head's own pinna is for own_pinna, so that both replace
+    the same region of the head. The cut is made in the untrimmed reconstruction: under the rim its fill of the
+    scan's holes is what makes the scan watertight (the trim would open the larger ones again). ``out_surface``
+    keeps the trimmed reconstruction (faces within ``trim_mm`` of the scan), as a user would look at it."""
     from .reconstruction import poisson_surface, reconstruction_settings  # noqa: PLC0415
 
     start = time.perf_counter()
     scan, guide = _load(scan_path, "scan"), _load(guide_path, "guide pinna")
     reconstruction = poisson_surface(scan, source=str(scan_path))
     try:
-        region = own_pinna_region(reconstruction.surface, guide, pinna_source=str(guide_path))
+        region = own_pinna_region(reconstruction.closed, guide, pinna_source=str(guide_path), tidy_boundary=True)
     except StitchError as error:
         raise StitchError(f"{scan_path}: its screened Poisson reconstruction cannot be cut to a pinna under the rim of "
                           f"{guide_path}: {error}") from error

@@ -20,7 +20,7 @@ from scipy.spatial import cKDTree
 from mesh2hrtf_io.checks import mesh_problems
 
 from .errors import StitchError
-from .loops import boundary_loops, bridge_loops
+from .loops import boundary_loops, bridge_loops, without_bowties
 
 
 @dataclasses.dataclass(frozen=True)
@@ -86,11 +86,13 @@ def _largest_component(mesh: trimesh.Trimesh, faces: np.ndarray) -> np.ndarray:
 
 
 def own_pinna_region(head: trimesh.Trimesh, pinna: trimesh.Trimesh, *, inset_mm: float = 1.0,
-                     reach_mm: float = 25.0, pinna_source: str = "pinna mesh") -> trimesh.Trimesh:
+                     reach_mm: float = 25.0, pinna_source: str = "pinna mesh",
+                     tidy_boundary: bool = False) -> trimesh.Trimesh:
     """The head's own left pinna under an aligned pinna ``pinna``: the head faces inside its rim (by at least
     ``inset_mm``), as one open surface with one boundary, in mm. Stitched back with :func:`replace_pinna`
     and remeshed like a PPM pinna, it is the control that shows what the stitch and remesh path alone
-    changes."""
+    changes. ``tidy_boundary`` cuts away faces that touch the region by one vertex only (:func:`without_bowties`),
+    as a fine surface cut by a vertex mask has (a reconstructed scan; a head's own region is left as it is)."""
     rim = _check_pinna(pinna, pinna_source)
     covered, _, _ = _covered_by_pinna(head, pinna, rim, -inset_mm, reach_mm)
     inside = covered[head.faces].all(axis=1)
@@ -102,6 +104,8 @@ def own_pinna_region(head: trimesh.Trimesh, pinna: trimesh.Trimesh, *, inset_mm:
     region_faces = _largest_component(head, np.setdiff1d(np.arange(len(head.faces)), rest))
     region = trimesh.Trimesh(head.vertices, head.faces[region_faces], process=False)
     region.remove_unreferenced_vertices()
+    if tidy_boundary:
+        region = without_bowties(region)
     loops = boundary_loops(region)
     if len(loops) != 1:
         raise StitchError(f"{pinna_source}: the head's own pinna region has {len(loops)} boundary loops instead of one "

@@ -63,9 +63,11 @@ def test_the_paper_plan_reads_the_committed_step_store(in_root, sonicom):
     run = RunPlan(_config("config/paper_sonicom.yaml"))
     assert run.subjects == ["P039", "P067", "P143"]
     assert run.evaluation_conditions("P143") == ["original", "ppm", "own_pinna", "default_ppm", "ppm_detail",
-                                                 "ppm_hard", "ppm_detail_hard", "nricp_hard"]
+                                                 "ppm_hard", "ppm_detail_hard", "nricp_hard", "scan_hard"]
     assert run.evaluation_conditions("P067") == ["original", "ppm", "own_pinna", "default_ppm", "ppm_detail",
-                                                 "ppm_hard", "ppm_detail_hard"]
+                                                 "ppm_hard", "ppm_detail_hard", "scan_hard"]
+    # the defective scan made watertight is cut under the rim of the PPM fitted to it
+    assert run.control_pinna("P067", "scan_hard") == "results/P067/controls/scan_hard/pinna.ply"
     assert list(run.not_solved("P067")) == ["nricp_hard"] and "2 holes" in run.not_solved("P067")["nricp_hard"]
     assert run.not_solved("P143") == {}
     assert run.evaluation_conditions("P039") == ["original", "ppm", "own_pinna", "default_ppm", "ppm_detail"]
@@ -89,6 +91,7 @@ def test_the_paper_plan_reads_the_committed_step_store(in_root, sonicom):
     inputs = run.evaluation_report_inputs()
     assert inputs["P143_default_ppm_hrtf"] == "results/P143/hrtf/default_ppm/HRTF.sofa"
     assert inputs["P143_hard_scan"] == "results/P143/controls/hard/scan.ply"
+    assert inputs["nonindividual_ku100"] == "../shared/data/hrtf/measured_ku100_bernschuetz.npz"
     assert "evaluation/sonicom/summary.csv" in run.final_output()
     assert "steps" in run.solve_plan_text(lambda: 2)  # NumCalc's plan counts the steps on the cores asked for
     # before the export no NumCalc prediction: config hrtf.step_runtime_min per step

@@ -574,18 +574,27 @@ class RunPlan:
         the head: a personal HRTF set, not only the planes the localisation model reads)."""
         return {**self.hrtf, "grid": "full"} if self.is_listener(subject) else self.hrtf
 
-    def listener_comparisons(self, listener: str) -> dict[str, str]:
-        """The sets a listener's own is compared with in its report: the run's other listeners' HRTFs and config
-        listener.comparison_sets (named by their folder, or file name where folders repeat)."""
-        sets = {name: f"results/listeners/{name}/hrtf/personal/HRTF.sofa" for name in self.listeners if name != listener}
-        for path in (self.config.get("listener") or {}).get("comparison_sets") or []:
-            name = Path(path).parent.name or Path(path).stem
-            sets[name if name not in sets else Path(path).stem] = str(path)
-        missing = [path for path in sets.values() if not path.startswith("results/") and not Path(path).is_file()]
+    def listener_comparison_sets(self, listener: str) -> dict[str, dict]:
+        """The sets a listener's own is compared with in its report, by name: the run's other listeners' HRTFs and
+        config listener.comparison_sets (a SOFA path, named by its folder, or file name where folders repeat; or a
+        measured set {name, file, kind, sampling_rate_hz}), each as {file, kind[, sampling_rate_hz]}."""
+        sets = {name: {"file": f"results/listeners/{name}/hrtf/personal/HRTF.sofa", "kind": "listener of this run"}
+                for name in self.listeners if name != listener}
+        for entry in (self.config.get("listener") or {}).get("comparison_sets") or []:
+            if isinstance(entry, dict):
+                sets[entry["name"]] = {key: entry[key] for key in ("file", "kind", "sampling_rate_hz") if key in entry}
+                continue
+            name = Path(entry).parent.name or Path(entry).stem
+            sets[name if name not in sets else Path(entry).stem] = {"file": str(entry), "kind": "other person"}
+        missing = [s["file"] for s in sets.values() if not s["file"].startswith("results/") and not Path(s["file"]).is_file()]
         if missing:
             raise RunConfigError(f"config listener.comparison_sets: {missing} not found; give SOFA files of other "
-                                 "people's HRTFs, or none")
+                                 "people's HRTFs (or measured sets with name, file and kind), or none")
         return sets
+
+    def listener_comparisons(self, listener: str) -> dict[str, str]:
+        """The files of :meth:`listener_comparison_sets`, by name."""
+        return {name: entry["file"] for name, entry in self.listener_comparison_sets(listener).items()}
 
     def listener_outputs(self) -> list[str]:
         """What a run with listeners makes for each: the frame found, both fits, the remeshed head with both PPM

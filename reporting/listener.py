@@ -3,11 +3,13 @@ personalising buys by baumgartner2014.
 
 Localisation: the listener's own set is the template, with S calibrated so that it heard through itself gives 8 %
 quadrant errors; each other set (other listeners of the run, and the sets of config ``listener.comparison_sets``,
-e.g. SONICOM's) is then a non-individual HRTF heard with that template. The gain of personalising is their QE and
-PE minus the own set's. Other sets are sampled at the listener's solved frequencies (pchip on magnitude and
-unwrapped phase, :func:`amt_bridge.hrtf_set.resampled_at`) and rebuilt, so all sets share rate and length; each
-comparison is made on the directions the two sets share (:func:`amt_bridge.hrtf_set.on_common_directions`), with
-S calibrated to 8 % on the own set at those directions, as the quadrant error depends on the grid's density.
+e.g. SONICOM's, and measured dummy heads and listeners as in the evaluation's ``nonindividual``) is then a
+non-individual HRTF heard with that template. The gain of personalising is their QE and PE minus the own set's.
+Other sets are sampled at the listener's solved frequencies (exact DFT at their own rate) and rebuilt at the own
+set's rate and length (:func:`reporting.nonindividual.rebuilt_like`), so a set measured at 44.1 kHz is resampled
+too; each comparison is made on the directions the two sets share (:func:`amt_bridge.hrtf_set.on_common_directions`),
+with S calibrated to 8 % on the own set at those directions, as the quadrant error depends on the grid's density.
+The report ranks them, as the evaluation's ranking does (:mod:`reporting.ranking`).
 """
 from __future__ import annotations
 
@@ -25,23 +27,28 @@ LATERAL_ANGLES_DEG = (-20.0, 0.0, 20.0)
 QE_CALIBRATION_PERCENT = 8.0
 
 
-def listener_localisation(own_hrtf: str | os.PathLike, others: dict[str, str | os.PathLike]) -> dict:
+def listener_localisation(own_hrtf: str | os.PathLike, others: dict[str, str | os.PathLike | dict]) -> dict:
     """QE/PE of the own set (``own_hrtf``: the listener's both-ear HRTF SOFA) as its own template at S for 8 %
-    QE, and of each other set (name -> SOFA, HRIR or HRTF) with the own template at that S."""
+    QE, and of each other set (name -> a SOFA file, HRIR or HRTF, or {file, kind[, sampling_rate_hz]} as
+    :class:`reporting.nonindividual.MeasuredSet` reads it) with the own template at that S."""
     import sofar  # noqa: PLC0415
 
-    from amt_bridge.hrtf_set import on_common_directions, read_hrtf_set, resampled_at  # noqa: PLC0415
+    from amt_bridge.hrtf_set import on_common_directions, read_hrtf_set  # noqa: PLC0415
     from amt_bridge.model import LocalisationModel  # noqa: PLC0415
 
-    frequencies = np.asarray(sofar.read_sofa(str(own_hrtf), verify=False).N)
+    from .nonindividual import MeasuredSet, read_measured_set, rebuilt_like  # noqa: PLC0415
+
+    frequencies = np.asarray(sofar.read_sofa(str(own_hrtf), verify=False, verbose=False).N)
     own = read_hrtf_set(own_hrtf)
     model = LocalisationModel(own, own, list(LATERAL_ANGLES_DEG))
     sensitivity = model.calibrate(QE_CALIBRATION_PERCENT, closest=True)
     reference = model.predict(sensitivity).as_dict()
     rows = {"own": {"qe_percent": reference["qe_percent"], "pe_deg": reference["pe_deg"],
                     "directions": int(own.irs.shape[0])}}
-    for name, path in others.items():
-        own_there, other = on_common_directions(own, resampled_at(read_hrtf_set(path), frequencies))
+    for name, given in others.items():
+        entry = given if isinstance(given, dict) else {"file": str(given), "kind": "other person"}
+        measured = MeasuredSet.from_config({"name": name, **entry})
+        own_there, other = on_common_directions(own, rebuilt_like(read_measured_set(measured), frequencies, own))
         template = LocalisationModel(own_there, own_there, list(LATERAL_ANGLES_DEG))
         there = template.calibrate(QE_CALIBRATION_PERCENT, closest=True)
         base = template.predict(there).as_dict()
@@ -49,7 +56,7 @@ def listener_localisation(own_hrtf: str | os.PathLike, others: dict[str, str | o
         rows[name] = {"qe_percent": predicted["qe_percent"], "pe_deg": predicted["pe_deg"],
                       "gain_qe_pp": predicted["qe_percent"] - base["qe_percent"],
                       "gain_pe_deg": predicted["pe_deg"] - base["pe_deg"], "directions": int(other.irs.shape[0]),
-                      "sensitivity_db": there}
+                      "sensitivity_db": there, "kind": measured.kind}
     return {"sensitivity_db": sensitivity, "calibration_qe_percent": QE_CALIBRATION_PERCENT, "sets": rows}
 
 
@@ -113,10 +120,13 @@ def write_listener_report(name: str, base: str | os.PathLike, localisation: dict
     def set_row(set_name: str, row: dict) -> str:
         gains = ("<td></td><td></td>" if set_name == "own"
                  else f"<td>{row['gain_qe_pp']:+.1f}</td><td>{row['gain_pe_deg']:+.1f}</td>")
-        return (f"<tr><td>{html.escape(set_name)}</td><td>{row['qe_percent']:.1f}</td><td>{row['pe_deg']:.1f}</td>"
-                f"{gains}</tr>")
+        kind = "personal (the template)" if set_name == "own" else row.get("kind", "other person")
+        return (f"<tr><td>{html.escape(set_name)}</td><td style='text-align:left'>{html.escape(kind)}</td>"
+                f"<td>{row['directions']}</td><td>{row['qe_percent']:.1f}</td><td>{row['pe_deg']:.1f}</td>{gains}</tr>")
 
-    rows = "".join(set_row(set_name, row) for set_name, row in localisation["sets"].items())
+    # ranked as the evaluation's ranking: the own set first, then by the quadrant errors another set costs
+    ranked = sorted(localisation["sets"].items(), key=lambda item: (item[0] != "own", item[1].get("gain_qe_pp", 0.0)))
+    rows = "".join(set_row(set_name, row) for set_name, row in ranked)
     fit_rows = "".join(
         f"<tr><td>{side}</td><td>{fit['median_mm']:.2f}</td><td>{fit['p95_mm']:.2f}</td>"
         f"<td><a href='{rel(base / fit_dir / side / 'aligned_pinna.blend')}'>aligned_pinna.blend</a></td></tr>"
@@ -144,7 +154,8 @@ and {remesh.get('right_pinna_edge_mm', {}).get('median', float('nan')):.2f} mm (
 <p>The listener's own set is the template; S = {localisation['sensitivity_db']:.2f} dB gives
 {localisation['calibration_qe_percent']:g} % quadrant errors heard through itself. Each other set stands for a
 non-individual HRTF heard with that template; the gain is its error minus the own set's.</p>
-<table><tr><th>set</th><th>QE (%)</th><th>PE (°)</th><th>ΔQE (pp)</th><th>ΔPE (°)</th></tr>{rows}</table>
+<table><tr><th>set</th><th>what it is</th><th>directions</th><th>QE (%)</th><th>PE (°)</th><th>ΔQE (pp)</th>
+<th>ΔPE (°)</th></tr>{rows}</table>
 </body></html>
 """
     write_text_atomic(out_html, page)

@@ -180,7 +180,7 @@ rule listener_report:
     benchmark:
         "benchmarks/timings/listener/report/{listener}.tsv"
     params:
-        others=lambda wc: RUN.listener_comparisons(wc.listener),
+        others=lambda wc: RUN.listener_comparison_sets(wc.listener),
         personal_detail=RUN.listener_personal_detail,
     threads: 1
     resources:

@@ -62,6 +62,9 @@ def test_a_listener_gets_a_both_ear_hrir_set_on_the_full_grid(tmp_path, sonicom)
     config["hrtf"].update(enabled=True, solver="embedded", embedded_threads=2, polar_step_deg=10.0,
                           frequencies_hz={"min": 1250.0, "max": 20000.0, "step": 2500.0})
     config["listener"]["comparison_sets"] = [str(sonicom / s / "hrir_mesh2hrtf_48k.sofa") for s in ("P039", "P067")]
+    # a measured listener, as the evaluation's non-individual sets are given (reporting.nonindividual.MeasuredSet)
+    config["listener"]["comparison_sets"].append({"name": "axd1", "kind": "listener",
+                                                  "file": str(sonicom.parent / "hrtf" / "measured_axd_example1.sofa")})
     config["listener"]["personal_detail"] = True
     config["stitch"]["bands"] = config["demo"]["bands"]
     (work / "config" / "listener_ci.yaml").write_text(yaml.safe_dump(config))
@@ -98,7 +101,8 @@ def test_a_listener_gets_a_both_ear_hrir_set_on_the_full_grid(tmp_path, sonicom)
     assert 10 * np.log10(energy[left, 0].mean() / energy[left, 1].mean()) > 10.0
     assert 10 * np.log10(energy[right, 1].mean() / energy[right, 0].mean()) > 10.0
     localisation = json.loads((work / "results/listeners/cgtub/localisation.json").read_text())
-    assert set(localisation["sets"]) == {"own", "P039", "P067"}
+    assert set(localisation["sets"]) == {"own", "P039", "P067", "axd1"}
+    assert localisation["sets"]["axd1"]["kind"] == "listener" and localisation["sets"]["P039"]["kind"] == "other person"
     assert all(np.isfinite(row["qe_percent"]) for row in localisation["sets"].values())
     page = (work / "results/listeners/cgtub/report.html").read_text()
     assert "What personalising buys" in page and "hrtf_planes.png" in page and "detail/left/aligned_pinna.blend" in page

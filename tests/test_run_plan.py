@@ -165,8 +165,10 @@ def test_a_listener_is_solved_as_its_own_subject_on_the_full_grid(in_root, tmp_p
     scan = tmp_path / "head.stl"
     scan.write_bytes(b"solid x\nendsolid x\n")
     other = sonicom / "P039" / "hrir_mesh2hrtf_48k.sofa"
+    ku100 = sonicom.parent / "hrtf" / "measured_ku100_bernschuetz.npz"
+    measured = {"name": "ku100", "file": str(ku100), "kind": "dummy head", "sampling_rate_hz": 48000}
     config = _config(listeners=[{"name": "anna", "head": str(scan)}, {"name": "ben", "head": str(scan)}],
-                     listener={"template": "", "comparison_sets": [str(other)]})
+                     listener={"template": "", "comparison_sets": [str(other), measured]})
     run = RunPlan(config)
     assert run.listener_subjects == ["listeners/anna", "listeners/ben"]
     assert run.final_output()[-1] == "results/listeners/ben/report.html"
@@ -176,7 +178,10 @@ def test_a_listener_is_solved_as_its_own_subject_on_the_full_grid(in_root, tmp_p
     assert run.export_settings("listeners/anna")["grid"] == "full"
     assert run.grid_inputs("listeners/anna") == {}
     assert run.listener_comparisons("anna") == {"ben": "results/listeners/ben/hrtf/personal/HRTF.sofa",
-                                                "P039": str(other)}
+                                                "P039": str(other), "ku100": str(ku100)}
+    # a measured set keeps its kind and rate for the report's table
+    assert run.listener_comparison_sets("anna")["ku100"] == {"file": str(ku100), "kind": "dummy head",
+                                                             "sampling_rate_hz": 48000}
     assert run.listener_template().endswith("template_left.ply")
     assert run.listener_pinna("anna", "right") == "results/listeners/anna/align/right/aligned_pinna.ply"
     assert not run.listener_personal_detail

@@ -12,7 +12,7 @@ import json
 import logging
 from pathlib import Path
 
-from .backends import PROBE_TOLERANCE
+from .backends import PROBE_TOLERANCE, no_core_dumps
 
 
 def _probe_sphere(backend: str) -> dict:
@@ -108,6 +108,7 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--out", type=Path, required=True)
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.WARNING)
+    no_core_dumps()  # a backend that aborts here must not dump a driver's address space
     _child(args.backend, args.out)
 
 

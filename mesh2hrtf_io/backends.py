@@ -159,6 +159,26 @@ def probe(backend: str, *, command: list[str] | None = None, timeout_s: float = 
     return verdict
 
 
+def no_core_dumps() -> None:
+    """In this process (a probe child, before it tries a native backend that may abort): no core file, and not
+    dumpable at all, so that neither the kernel nor a core_pattern pipe (systemd-coredump, apport) writes gigabytes of
+    a driver's address space when the backend aborts (pocl on an unsupported CPU: minutes of system time). POSIX only;
+    elsewhere nothing happens."""
+    try:
+        import resource  # noqa: PLC0415
+
+        resource.setrlimit(resource.RLIMIT_CORE, (0, 0))
+    except (ImportError, ValueError, OSError):
+        pass
+    if sys.platform.startswith("linux"):
+        import ctypes  # noqa: PLC0415
+
+        try:
+            ctypes.CDLL(None, use_errno=True).prctl(4, 0, 0, 0, 0)  # PR_SET_DUMPABLE = 4, off
+        except (OSError, AttributeError):
+            pass
+
+
 def _run_probe(backend: str, command: list[str] | None, timeout_s: float) -> Verdict:
     start = time.perf_counter()
     with tempfile.TemporaryDirectory() as folder:
@@ -169,8 +189,9 @@ def _run_probe(backend: str, command: list[str] | None, timeout_s: float) -> Ver
         env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(Path(__file__).resolve().parents[1]),
                                                             os.environ.get("PYTHONPATH", "")]))
         try:
+            # the core-file limit of 0 passes through exec to the child; the probe module also turns dumping off
             done = subprocess.run(argv, capture_output=True, text=True, timeout=timeout_s, env=env,
-                                  stdin=subprocess.DEVNULL)
+                                  stdin=subprocess.DEVNULL, preexec_fn=no_core_dumps if os.name == "posix" else None)
         except subprocess.TimeoutExpired:
             return Verdict(backend, False, f"the probe gave no answer in {timeout_s:.0f} s",
                            time.perf_counter() - start, _now())

@@ -15,6 +15,17 @@ from .errors import Mesh2HrtfIoError
 from .frequency_sets import check_frequency_set, frequencies_from_spec, frequency_list, presets
 
 
+def _steps(text: str) -> list[int]:
+    """``--steps`` value: 1-based step numbers separated by commas ("30", "1,2,30")."""
+    try:
+        steps = [int(part) for part in text.split(",") if part.strip()]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: give 1-based step numbers separated by commas, e.g. 1,2,30") from None
+    if not steps or min(steps) < 1:
+        raise argparse.ArgumentTypeError(f"{text!r}: steps are numbered from 1")
+    return steps
+
+
 def _export_frequencies(args) -> np.ndarray:
     """The export's set: an explicit list, a preset, or the linear grid of --fmin/--fmax/--fstep."""
     if args.frequencies:
@@ -113,7 +124,10 @@ def main(argv: list[str] | None = None) -> int:
                              help="embedded solver's backend (mesh2hrtf_io/backends.py)")
         command.add_argument("--numcalc", default=None, help="NumCalc binary (default: PATH)")
         if name == "solve":
-            command.add_argument("--steps", type=int, nargs="*", default=None, help="1-based steps (default: all)")
+            # one value per --steps (a comma list, or the option repeated): with nargs="*", "--steps 30 PROJECT"
+            # took the project for a step ("invalid int value"); now the project stays positional wherever it stands
+            command.add_argument("--steps", type=_steps, action="extend", default=None, metavar="STEP[,STEP...]",
+                                 help="1-based steps, e.g. --steps 30 or --steps 1,2,30 (default: all)")
     from .sofa_out import HRIR_RATE_HZ, HRIR_SAMPLES  # noqa: PLC0415
 
     collect = sub.add_parser("collect", help="write HRTF/HRIR SOFA files of a solved project")

@@ -236,3 +236,34 @@ def test_a_head_too_large_for_the_gpu_is_refused_with_the_sizes():
     message = str(error.value)
     assert "P143 original" in message and "9.9 GB" in message and "8.0 of 16.0 GB" in message
     assert "NumCalc" in message and "coarser mesh" in message
+
+
+def test_a_probe_child_may_not_dump_core(cache):
+    """A probe that aborts must not write a core file (a driver's address space: minutes of system time): its
+    core-file limit is 0 before it starts, and the probe module turns dumping off itself."""
+    code = ("import json, resource, sys; soft, hard = resource.getrlimit(resource.RLIMIT_CORE); "
+            "open(sys.argv[1], 'w').write(json.dumps({'ok': soft == 0 and hard == 0, 'reason': f'{soft} {hard}'}))")
+    verdict = backends.probe("opencl", command=[sys.executable, "-c", code, "{out}"])
+    assert verdict.ok, verdict.reason
+    import subprocess
+
+    # in this very process the call works and the flag reads back as off (PR_GET_DUMPABLE = 3)
+    check = ("import ctypes; from mesh2hrtf_io.backends import no_core_dumps; no_core_dumps(); "
+             "print(ctypes.CDLL(None).prctl(3, 0, 0, 0, 0))")
+    if sys.platform.startswith("linux"):
+        done = subprocess.run([sys.executable, "-c", check], capture_output=True, text=True, check=True)
+        assert done.stdout.strip() == "0"
+
+
+def test_solve_takes_its_steps_before_or_after_the_project(tmp_path, capsys):
+    """`m2h solve --steps 30 PROJECT` reads 30 as the step and PROJECT as the project (with nargs='*' the project
+    was taken for a step: 'invalid int value')."""
+    from mesh2hrtf_io.cli import main
+
+    missing = tmp_path / "no_project"
+    for argv in (["solve", "--steps", "30", str(missing)], ["solve", str(missing), "--steps", "1,2,30"]):
+        assert main(argv) != 0
+        assert "not a Mesh2HRTF project folder" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(["solve", str(missing), "--steps", "0"])
+    assert "numbered from 1" in capsys.readouterr().err

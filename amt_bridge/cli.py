@@ -8,7 +8,7 @@ import logging
 import sys
 from pathlib import Path
 
-from ppm.atomic import write_text_atomic
+from core.atomic import write_text_atomic
 
 from .errors import AmtBridgeError
 from .evaluation import compare_conditions, comparison_summary

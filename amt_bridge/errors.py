@@ -1,5 +1,6 @@
 """Errors of the localisation model: bad HRTF files, grids without a usable sagittal plane."""
+from core.errors import PipelineError
 
 
-class AmtBridgeError(ValueError):
+class AmtBridgeError(PipelineError):
     """Input that the localisation model cannot use; the message names the file or value and the fix."""

@@ -11,7 +11,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from ppm.atomic import atomic_path  # noqa: E402
+from core.atomic import atomic_path  # noqa: E402
 
 from .model import PlanePrediction, Prediction  # noqa: E402
 

@@ -22,7 +22,7 @@ import numpy as np
 import trimesh
 
 from ppm.align.synthetic import add_scan_defects
-from ppm.atomic import write_text_atomic
+from core.atomic import write_text_atomic
 from ppm.mesh_io import write_mesh
 from ppm.model import PinnaModel
 from ppm.parameters import random_parameters

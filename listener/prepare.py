@@ -14,7 +14,7 @@ from pathlib import Path
 
 import trimesh
 
-from ppm.atomic import write_text_atomic
+from core.atomic import write_text_atomic
 from ppm.errors import PpmError
 from ppm.mesh_io import load_mesh, write_mesh
 

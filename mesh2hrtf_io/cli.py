@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ppm.errors import PpmError
+from core.errors import PipelineError
 
 from .errors import Mesh2HrtfIoError
 from .frequency_sets import check_frequency_set, frequencies_from_spec, frequency_list, presets
@@ -149,7 +149,7 @@ def main(argv: list[str] | None = None) -> int:
                 "spikes": _spikes}
     try:
         result = handlers[args.command](args)
-    except (Mesh2HrtfIoError, PpmError) as exc:
+    except PipelineError as exc:
         print(f"m2h: error: {exc}", file=sys.stderr)
         return 2
     sys.stdout.write(json.dumps(result, indent=2, default=str) + "\n")

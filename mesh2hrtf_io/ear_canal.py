@@ -20,18 +20,17 @@ from __future__ import annotations
 import numpy as np
 import trimesh
 
-from ppm.errors import PpmError
 
 from .errors import Mesh2HrtfIoError
 
 SIDES = {"left": 1.0, "right": -1.0}
 
 
-class EarCanalError(Mesh2HrtfIoError, PpmError):
+class EarCanalError(Mesh2HrtfIoError):
     """No usable ear-canal element: the head is not centred at the interaural axis or has no ear there.
 
     Lives here, below both the stitch (which places the source while it builds the head) and the export (which
-    finds it again on a given head); a :class:`ppm.errors.PpmError` too, as when it was the stitch's."""
+    finds it again on a given head); a :class:`core.errors.PipelineError` like every stage's error."""
 
 
 def ear_canal_elements(mesh: trimesh.Trimesh, side: str, min_area_mm2: float = 4.0,

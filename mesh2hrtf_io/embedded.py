@@ -12,7 +12,7 @@ import time
 
 import numpy as np
 
-from ppm.progress import Progress
+from core.progress import Progress
 
 from .bem import estimate_cost, solve_sources
 from .project_reader import Project, read_project

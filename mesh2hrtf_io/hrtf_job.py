@@ -14,8 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ppm.atomic import write_text_atomic
-from ppm.progress import Progress
+from core.atomic import write_text_atomic
+from core.progress import Progress
 
 from .constants import SPEED_OF_SOUND_M_S
 from .frequency_sets import describe_set, frequencies_from_spec

@@ -22,7 +22,7 @@ import sys
 import time
 from pathlib import Path
 
-from ppm.atomic import write_text_atomic
+from core.atomic import write_text_atomic
 
 from .errors import Mesh2HrtfIoError
 from .project import MAIN_PARAMETERS_II, main_parameters_ii

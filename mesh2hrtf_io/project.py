@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from ppm.atomic import atomic_directory
+from core.atomic import atomic_directory
 
 from .checks import SLIVER_ANGLE_DEG, check_mesh, sliver_count
 from .clusters import planned_cluster_tree

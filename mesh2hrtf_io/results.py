@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ppm.atomic import write_text_atomic
+from core.atomic import write_text_atomic
 
 from .errors import Mesh2HrtfIoError
 

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ppm.atomic import atomic_path
+from core.atomic import atomic_path
 
 from .constants import HRIR_LEAD_S
 from .errors import Mesh2HrtfIoError

@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ppm.atomic import atomic_path, write_text_atomic
+from core.atomic import atomic_path, write_text_atomic
 
 from .project_reader import read_project
 from .results import read_eval_grid_pressure, step_is_complete, write_eval_grid_pressure, write_solver_mark

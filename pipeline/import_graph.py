@@ -10,7 +10,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 #: The packages from the bottom layer up: a package may import only packages on its left.
-LAYERS = ("ppm", "hrtf_dsp", "mesh2hrtf_io", "amt_bridge", "stitching", "listener", "demo", "reporting", "pipeline")
+LAYERS = ("core", "ppm", "hrtf_dsp", "mesh2hrtf_io", "amt_bridge", "stitching", "listener", "demo", "reporting", "pipeline")
 
 
 def module_files(root: Path = ROOT, packages: tuple[str, ...] = LAYERS) -> dict[str, Path]:

@@ -13,7 +13,7 @@ import numpy as np
 import yaml
 from scipy.spatial import cKDTree
 
-from .atomic import write_text_atomic
+from core.atomic import write_text_atomic
 from .errors import PpmError
 
 LANDMARKS_NAME = "landmarks.yaml"

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from .atomic import atomic_path
+from core.atomic import atomic_path
 from .constants import MAX_PINNA_EXTENT_MM, MIN_PINNA_EXTENT_MM
 from .errors import PpmError
 

@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from .atomic import atomic_path
+from core.atomic import atomic_path
 from .deformation import RigGeometry, rig_geometry, rig_layout
 from .errors import PpmError
 from .landmarks import load_landmarks

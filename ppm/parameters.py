@@ -20,7 +20,7 @@ from typing import Iterable, Mapping
 import numpy as np
 import yaml
 
-from .atomic import write_text_atomic
+from core.atomic import write_text_atomic
 from .errors import PpmError
 
 AXES = ("X", "Y", "Z")

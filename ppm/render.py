@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .atomic import atomic_path
+from core.atomic import atomic_path
 from .model import PinnaModel, bone_polylines
 from .parameters import PinnaParameters, model_layout, parameter_specs
 

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ppm.atomic import write_text_atomic
+from core.atomic import write_text_atomic
 from ppm.parameters import PinnaParameters, parameter_specs
 
 from .cost import solve_costs, subjects_timings

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ppm.atomic import atomic_path, write_text_atomic
+from core.atomic import atomic_path, write_text_atomic
 
 #: Columns of summary.csv, in order (the issue's, the paper's protocol (reporting.paper_protocol.PAPER_COLUMNS), then
 #: provenance).

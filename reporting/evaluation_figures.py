@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ppm.atomic import atomic_path
+from core.atomic import atomic_path
 
 
 def figure7(rows: list[dict], path: str | os.PathLike) -> Path:

@@ -9,7 +9,7 @@ import os
 import shutil
 from pathlib import Path
 
-from ppm.atomic import atomic_path, write_text_atomic
+from core.atomic import atomic_path, write_text_atomic
 
 from .evaluation import COLUMNS
 from .evaluation_regions import REGION_COLUMNS

@@ -6,7 +6,7 @@ import html
 import os
 from pathlib import Path
 
-from ppm.atomic import write_text_atomic
+from core.atomic import write_text_atomic
 
 from .evaluation import COLUMNS, CONDITION_LABELS, goal_lines, paper_goal_lines
 from .evaluation_files import cell_text

@@ -12,7 +12,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from ppm.atomic import atomic_path  # noqa: E402
+from core.atomic import atomic_path  # noqa: E402
 from ppm.parameters import PinnaParameters, parameter_specs  # noqa: E402
 
 GROUPS = (("location", "location (mm)"), ("rotation", "rotation (deg)"), ("scale", "scale (factor - 1)"),

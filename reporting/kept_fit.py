@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from mesh2hrtf_io.step_store import HEAD_FILE, file_sha256, utc_now
-from ppm.atomic import write_text_atomic
+from core.atomic import write_text_atomic
 
 log = logging.getLogger(__name__)
 FIT_LANDMARKS_FILE = "fit_landmarks.json"

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ppm.atomic import atomic_path, write_text_atomic
+from core.atomic import atomic_path, write_text_atomic
 
 #: Lateral angles (deg) of the sagittal planes drawn and read by the model, as in the evaluation.
 LATERAL_ANGLES_DEG = (-20.0, 0.0, 20.0)

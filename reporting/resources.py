@@ -11,7 +11,7 @@ from pathlib import Path
 
 import yaml
 
-from ppm.atomic import write_text_atomic
+from core.atomic import write_text_atomic
 
 from .cost import read_benchmark
 

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from ppm.atomic import write_text_atomic
+from core.atomic import write_text_atomic
 from ppm.parameters import PinnaParameters, parameter_specs
 
 from .cost import solve_costs, subject_timings

@@ -1,6 +1,6 @@
 """Errors of the stitching stage (head + pinna -> one closed BEM surface)."""
-from ppm.errors import PpmError
+from core.errors import PipelineError
 
 
-class StitchError(PpmError):
+class StitchError(PipelineError):
     """A head or pinna that cannot be stitched; the message names the file and the fix."""

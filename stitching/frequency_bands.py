@@ -18,7 +18,7 @@ import trimesh
 from scipy.spatial import cKDTree
 
 from mesh2hrtf_io.ear_canal import ear_canal_elements
-from ppm.atomic import write_text_atomic
+from core.atomic import write_text_atomic
 from ppm.mesh_io import write_mesh
 
 from .errors import StitchError

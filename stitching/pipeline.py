@@ -12,7 +12,7 @@ import numpy as np
 import trimesh
 
 from mesh2hrtf_io.checks import SLIVER_ANGLE_DEG
-from ppm.atomic import write_text_atomic
+from core.atomic import write_text_atomic
 from ppm.mesh_io import write_mesh
 
 from mesh2hrtf_io.ear_canal import ear_canal_elements

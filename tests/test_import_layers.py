@@ -32,3 +32,13 @@ def test_the_checker_finds_a_cycle(tmp_path):
 def test_every_package_is_in_a_layer():
     packages = {p.name for p in ROOT.iterdir() if (p / "__init__.py").is_file()}
     assert packages == set(LAYERS), f"add {sorted(packages - set(LAYERS))} to pipeline.import_graph.LAYERS"
+
+
+def test_the_io_layer_does_not_stand_on_the_pinna_model():
+    """mesh2hrtf_io and amt_bridge (and hrtf_dsp) import the shared helpers from core, nothing of ppm."""
+    graph = module_graph()
+    on_ppm = sorted(f"{module} -> {target}" for module, targets in graph.items()
+                    if module.split(".")[0] in ("mesh2hrtf_io", "amt_bridge", "hrtf_dsp")
+                    for target in targets if target.split(".")[0] == "ppm")
+    assert not on_ppm, "; ".join(on_ppm)
+    assert not any(graph[module] for module in graph if module.split(".")[0] == "core")

@@ -185,7 +185,7 @@ def test_from_blend_refuses_missing_and_foreign_files(tmp_path):
 def test_progress_lines_estimate_the_time_left():
     import logging
 
-    from ppm.progress import Progress
+    from core.progress import Progress
 
     now = [100.0]
     progress = Progress(4, "template registrations", logging.getLogger("test"), clock=lambda: now[0])

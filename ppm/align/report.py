@@ -15,7 +15,7 @@ import numpy as np
 import trimesh
 from scipy.spatial import cKDTree
 
-from ..atomic import atomic_path, write_text_atomic
+from core.atomic import atomic_path, write_text_atomic
 from ..model import PinnaModel
 from .fit import AlignmentResult
 from .target import Target

@@ -188,7 +188,7 @@ def write_target(target: Target, mesh_path: str | os.PathLike, report_path: str 
     found again when it is read) and a JSON report of the preparation. Both atomically."""
     import json  # noqa: PLC0415
 
-    from ..atomic import write_text_atomic  # noqa: PLC0415
+    from core.atomic import write_text_atomic  # noqa: PLC0415
     from ..mesh_io import write_mesh  # noqa: PLC0415
 
     report = {"source": target.source, "n_points": int(len(target.points_mm)),

@@ -16,11 +16,11 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from ..atomic import write_text_atomic
+from core.atomic import write_text_atomic
 from ..errors import PpmError
 from ..landmarks import LANDMARKS_NAME
 from ..mesh_io import load_left_pinna
-from ..progress import Progress
+from core.progress import Progress
 from .register import procrustes_mean, register_onto
 from .segment import crop_to_region, pinna_region
 

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from ..atomic import write_text_atomic
+from core.atomic import write_text_atomic
 from ..errors import PpmError
 from ..mesh_io import check_left_side, load_mesh, write_mesh
 

@@ -14,7 +14,7 @@ import bpy  # noqa: E402,F401  (before pymeshlab, which the resampling uses)
 import json  # noqa: E402
 
 from ppm.align.defects import hard_scan_of  # noqa: E402
-from ppm.atomic import write_text_atomic  # noqa: E402
+from core.atomic import write_text_atomic  # noqa: E402
 from ppm.mesh_io import write_mesh  # noqa: E402
 
 settings = snakemake.params.settings  # noqa: F821

@@ -13,7 +13,7 @@ import trimesh  # noqa: E402
 
 from listener.ear_scan import register_ear_scan  # noqa: E402
 from listener.errors import ListenerError  # noqa: E402
-from ppm.atomic import write_text_atomic  # noqa: E402
+from core.atomic import write_text_atomic  # noqa: E402
 from ppm.errors import PpmError  # noqa: E402
 from ppm.mesh_io import load_mesh, write_mesh  # noqa: E402
 

@@ -9,7 +9,7 @@ configure_logging(snakemake)  # noqa: F821
 
 import json  # noqa: E402
 
-from ppm.atomic import write_text_atomic  # noqa: E402
+from core.atomic import write_text_atomic  # noqa: E402
 from reporting.listener import listener_localisation, plot_planes, write_listener_report  # noqa: E402
 
 name = snakemake.wildcards.listener  # noqa: F821

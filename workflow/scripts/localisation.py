@@ -12,7 +12,7 @@ configure_logging(snakemake)  # noqa: F821
 from amt_bridge.evaluation import compare_conditions, comparison_summary  # noqa: E402
 from amt_bridge.plots import save_error_bars, save_prediction_matrices  # noqa: E402
 from mesh2hrtf_io.frequency_sets import describe_set, frequencies_from_spec  # noqa: E402
-from ppm.atomic import write_text_atomic  # noqa: E402
+from core.atomic import write_text_atomic  # noqa: E402
 
 settings = snakemake.params.settings  # noqa: F821
 out = snakemake.output  # noqa: F821

@@ -21,7 +21,7 @@ from ppm.align import prepare_target  # noqa: E402
 from ppm.align.nricp import NRICP_SCHEDULE, nricp_fit  # noqa: E402
 from ppm.align.report import distance_summary, one_sided_distances_mm  # noqa: E402
 from ppm.align.target import surface_without_outliers  # noqa: E402
-from ppm.atomic import write_text_atomic  # noqa: E402
+from core.atomic import write_text_atomic  # noqa: E402
 from ppm.mesh_io import write_mesh  # noqa: E402
 from ppm.render import render_distance_map  # noqa: E402
 from ppm.template.store import load_template  # noqa: E402

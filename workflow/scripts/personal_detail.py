@@ -16,7 +16,7 @@ import json  # noqa: E402
 from ppm.align import prepare_target  # noqa: E402
 from ppm.align.detail import add_personal_detail  # noqa: E402
 from ppm.align.report import one_sided_distances_mm  # noqa: E402
-from ppm.atomic import write_text_atomic  # noqa: E402
+from core.atomic import write_text_atomic  # noqa: E402
 from ppm.model import PinnaModel  # noqa: E402
 from ppm.render import render_distance_map  # noqa: E402
 

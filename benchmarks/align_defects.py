@@ -9,16 +9,22 @@ ppm/data/scan_defects.yaml). Each scan is fitted
     stiffness schedule that is best for these scans: every schedule of SCHEDULES is tried at the hardest
     level and the one with the smallest truth distance (mean of median and p95 over subjects) is used;
   * by the PPM plus its personal-detail layer (ppm.align.detail, packaged settings) on the same prepared scan;
+  * by the scan itself made watertight as a careful user would (`poisson`: MeshLab's outlier selection and
+    screened Poisson reconstruction through pymeshlab, trimmed 4 mm from the scan; stitching/reconstruction.py,
+    settings in stitching/data/scan_reconstruction.yaml), the baseline the layer must beat (issue 56);
   * at the hardest level, by the PPM again from --poses random poses of the same scan (uniform rotation,
     offset up to 300 mm, unit mm / cm / m, every second one mirrored into a right ear), through the
     workflow's own path (`prepare_target(..., scan_pose="any")`, a PLY file on disk).
 Distance to the truth: every truth point (pinna + 3 mm skin ring of the clean crop) to the fitted surface,
 and every fitted vertex whose closest truth point lies >= 1 mm from the truth's edge to the truth surface;
-the two directions pooled give the median and p95 (mm). A posed fit succeeds when it finds the unit and side,
+the two directions pooled give the median and p95 (mm). Over the region the stitch replaces (inside the rim of the
+PPM fitted to the scan), both directions again, each on its own, and the truth -> surface direction split into the
+parts the scan saw (a scan point within 2 mm) and those it never saw. A posed fit succeeds when it finds the unit and side,
 and, mapped back into the head frame, its surface lies within 1 mm (median, both ways) of the head-frame fit
 of the same scan (the vertex-to-vertex gap, which also counts vertices sliding along the surface, is printed).
 
 Run: .venv/bin/python benchmarks/align_defects.py [--poses 4] [--subjects P039 P067 P143] [--schedule to_0.007]
+     [--no-poisson]
 (~37 min alone with every schedule tried; --schedule skips the tuning, --poses 2 halves the posed fits)
 Prints readable lines, then one JSON line.
 """
@@ -46,6 +52,8 @@ from ppm.align.nricp import nricp_fit as fit_nricp
 from ppm.align.target import Target, surface_without_outliers
 from ppm.model import PinnaModel
 from ppm.template.register import NRICP_STEPS
+from stitching.reconstruction import poisson_surface
+from stitching.replace_pinna import under_pinna
 
 ROOT = Path(__file__).resolve().parents[1]
 #: NRICP stiffness schedules tried (stiff to supple): ending after 1 ... 4 of NRICP_STEPS' stages, and a
@@ -64,6 +72,36 @@ def truth_distances(truth: Target, vertices_mm: np.ndarray, faces: np.ndarray) -
             "truth_to_fit_median_mm": float(np.median(forward)), "truth_to_fit_p95_mm": float(np.percentile(forward, 95)),
             "fit_to_truth_median_mm": float(np.median(backward[counts])),
             "fit_to_truth_p95_mm": float(np.percentile(backward[counts], 95))}
+
+
+#: A truth point counts as seen by a defective scan when one of the scan's points lies this close (mm): the hard level
+#: resamples to 2 mm (studies/committed.SEEN_MM, the same figure).
+SEEN_MM = 2.0
+
+
+def region_distances(truth: Target, seen: np.ndarray, guide: trimesh.Trimesh, vertices_mm: np.ndarray,
+                     faces: np.ndarray) -> dict[str, float]:
+    """Over the region the stitch replaces under ``guide`` (the PPM fitted to the scan): truth -> surface and
+    surface -> truth median and p95 (mm), and truth -> surface over the truth points the scan saw (``seen``) and
+    those it never saw."""
+    inside = under_pinna(truth.points_mm, guide)
+    surface = trimesh.Trimesh(vertices_mm, faces, process=False)
+    forward = trimesh.proximity.closest_point(surface, truth.points_mm[inside])[1]
+    backward, counts = reverse_distances_mm(truth, vertices_mm, boundary_margin_mm=1.0)
+    counts &= under_pinna(np.asarray(vertices_mm), guide)
+    seen_inside = seen[inside]
+    out = {}
+    for name, values in (("truth_to_fit", forward), ("fit_to_truth", backward[counts]),
+                         ("seen", forward[seen_inside]), ("unseen", forward[~seen_inside])):
+        out[f"{name}_median_mm"] = float(np.median(values)) if len(values) else float("nan")
+        out[f"{name}_p95_mm"] = float(np.percentile(values, 95)) if len(values) else float("nan")
+    return out
+
+
+def at_or_below(first: dict, second: dict) -> bool:
+    """Whether ``first`` is at or below ``second`` in median and p95, both directions (region_distances)."""
+    return all(first[f"{d}_{q}_mm"] <= second[f"{d}_{q}_mm"] + 1e-9
+               for d in ("truth_to_fit", "fit_to_truth") for q in ("median", "p95"))
 
 
 def nricp_fit(template: trimesh.Trimesh, scan: trimesh.Trimesh, steps) -> tuple[np.ndarray, float]:
@@ -99,6 +137,7 @@ def main() -> None:
     parser.add_argument("--schedule", choices=sorted(SCHEDULES), default=None,
                         help="use this NRICP schedule instead of trying all at the hardest level (faster; the full run "
                              "picked to_0.007)")
+    parser.add_argument("--no-poisson", action="store_true", help="leave out the screened Poisson baseline")
     parser.add_argument("--fold-weight", type=float, default=AlignSettings.fold_weight,
                         help=f"the aligner's fold barrier weight (default {AlignSettings.fold_weight})")
     args = parser.parse_args()
@@ -114,7 +153,7 @@ def main() -> None:
     rows: dict[str, dict[str, dict]] = {}
     keep: dict[str, tuple[trimesh.Trimesh, Target]] = {}  # per subject: LOO template, clean truth
     nricp_by_schedule: dict[str, list[dict]] = {name: [] for name in schedules}
-    pose_results, fit_seconds, nricp_seconds, detail_seconds = [], [], [], []
+    pose_results, fit_seconds, nricp_seconds, detail_seconds, poisson_seconds = [], [], [], [], []
     work = Path(tempfile.mkdtemp(prefix="align_defects_"))
     for subject in subjects:
         crop = args.data_root / subject / "pinna_left_crop.ply"
@@ -133,13 +172,34 @@ def main() -> None:
             layer = personal_detail(result.vertices_mm, model.faces, target)
             detail = truth_distances(truth, result.vertices_mm + layer.displacement_mm, model.faces)
             detail_seconds.append(time.perf_counter() - start)
+            guide = trimesh.Trimesh(result.vertices_mm, model.faces, process=False)
+            seen = np.asarray(trimesh.proximity.ProximityQuery(scan.mesh).vertex(truth.points_mm)[0]) < SEEN_MM
+            regions = {"ppm": region_distances(truth, seen, guide, result.vertices_mm, model.faces),
+                       "ppm_detail": region_distances(truth, seen, guide, result.vertices_mm + layer.displacement_mm,
+                                                      model.faces)}
+            if not args.no_poisson:
+                start = time.perf_counter()
+                reconstruction = poisson_surface(scan.mesh, source=f"{subject} {level} scan")
+                poisson_seconds.append(time.perf_counter() - start)
+                regions["poisson"] = region_distances(truth, seen, guide, reconstruction.surface.vertices,
+                                                      reconstruction.surface.faces)
+                print(f"{subject} {level}: screened Poisson (trimmed) over the stitched region: truth->surface "
+                      f"{regions['poisson']['truth_to_fit_median_mm']:.3f}/{regions['poisson']['truth_to_fit_p95_mm']:.3f}"
+                      f", surface->truth {regions['poisson']['fit_to_truth_median_mm']:.3f}/"
+                      f"{regions['poisson']['fit_to_truth_p95_mm']:.3f} mm; layer "
+                      f"{regions['ppm_detail']['truth_to_fit_median_mm']:.3f}/{regions['ppm_detail']['truth_to_fit_p95_mm']:.3f}"
+                      f", {regions['ppm_detail']['fit_to_truth_median_mm']:.3f}/"
+                      f"{regions['ppm_detail']['fit_to_truth_p95_mm']:.3f} mm; never seen: PPM "
+                      f"{regions['ppm']['unseen_median_mm']:.3f}, layer {regions['ppm_detail']['unseen_median_mm']:.3f}, "
+                      f"Poisson {regions['poisson']['unseen_median_mm']:.3f} mm (median)", flush=True)
             surface = surface_without_outliers(target)
             tried = schedules if level == hardest else {}
             for name, steps in tried.items():
                 vertices, nricp_time = nricp_fit(template, surface, steps)
                 nricp_by_schedule[name].append(truth_distances(truth, vertices, model.faces))
                 nricp_seconds.append(nricp_time)
-            rows[subject][level] = {"ppm": ppm, "ppm_detail": detail, "layer": layer.summary(), "scan_points": int(len(target.points_mm)),
+            rows[subject][level] = {"ppm": ppm, "ppm_detail": detail, "regions": regions, "layer": layer.summary(),
+                                    "scan_points": int(len(target.points_mm)),
                                     "kept_share": round(scan.kept_share, 3), "fit_seconds": round(seconds, 1),
                                     "_surface": surface}
             print(f"{subject} {level}: scan {len(target.points_mm)} points ({100 * scan.kept_share:.0f} % of the "
@@ -203,6 +263,8 @@ def main() -> None:
                 nricp = truth_distances(truth, vertices, template.faces)
             row["nricp"] = nricp
             del row["_surface"]
+            if "poisson" in row["regions"]:
+                row["detail_beats_poisson"] = at_or_below(row["regions"]["ppm_detail"], row["regions"]["poisson"])
             detail = row["ppm_detail"]
             row["detail_beats_both"] = bool(
                 detail["median_mm"] <= min(row["ppm"]["median_mm"], nricp["median_mm"])
@@ -217,7 +279,43 @@ def main() -> None:
     worst_detail = max(subjects, key=lambda s: rows[s][hardest]["ppm_detail"]["median_mm"])
     beats = [rows[s][lv]["detail_beats_both"] for s in subjects for lv in grades]
     successes = [r["success"] for r in pose_results]
+    with_poisson = [(s, lv) for s in subjects for lv in grades if "poisson" in rows[s][lv]["regions"]]
+    poisson_keys = {}
+    if with_poisson:
+        def region(s: str, lv: str, method: str, key: str) -> float:
+            return rows[s][lv]["regions"][method][key]
+
+        worst = max(subjects, key=lambda s: region(s, hardest, "poisson", "truth_to_fit_median_mm"))
+        poisson_keys = {
+            "poisson_truth_median_mm": round(region(worst, hardest, "poisson", "truth_to_fit_median_mm"), 4),
+            "poisson_truth_p95_mm": round(max(region(s, hardest, "poisson", "truth_to_fit_p95_mm") for s in subjects), 4),
+            "detail_region_truth_median_mm": round(max(region(s, hardest, "ppm_detail", "truth_to_fit_median_mm")
+                                                       for s in subjects), 4),
+            "detail_region_truth_p95_mm": round(max(region(s, hardest, "ppm_detail", "truth_to_fit_p95_mm")
+                                                    for s in subjects), 4),
+            "detail_beats_poisson": round(float(np.mean([rows[s][lv]["detail_beats_poisson"] for s, lv in with_poisson])), 4),
+            # over the parts the scan never saw, at the hardest level, the mean over subjects of the medians
+            "unseen_ppm_median_mm": round(float(np.mean([region(s, hardest, "ppm", "unseen_median_mm")
+                                                         for s in subjects])), 4),
+            "unseen_detail_median_mm": round(float(np.mean([region(s, hardest, "ppm_detail", "unseen_median_mm")
+                                                            for s in subjects])), 4),
+            "unseen_poisson_median_mm": round(float(np.mean([region(s, hardest, "poisson", "unseen_median_mm")
+                                                             for s in subjects])), 4),
+            "poisson_seconds_per_scan": round(float(np.mean(poisson_seconds)), 1),
+        }
+        for s, lv in with_poisson:
+            r = rows[s][lv]["regions"]
+            print(f"{s} {lv} (stitched region, median/p95 mm): truth->surface PPM "
+                  f"{r['ppm']['truth_to_fit_median_mm']:.3f}/{r['ppm']['truth_to_fit_p95_mm']:.3f}, layer "
+                  f"{r['ppm_detail']['truth_to_fit_median_mm']:.3f}/{r['ppm_detail']['truth_to_fit_p95_mm']:.3f}, Poisson "
+                  f"{r['poisson']['truth_to_fit_median_mm']:.3f}/{r['poisson']['truth_to_fit_p95_mm']:.3f}; surface->truth "
+                  f"layer {r['ppm_detail']['fit_to_truth_median_mm']:.3f}/{r['ppm_detail']['fit_to_truth_p95_mm']:.3f}, "
+                  f"Poisson {r['poisson']['fit_to_truth_median_mm']:.3f}/{r['poisson']['fit_to_truth_p95_mm']:.3f}; "
+                  f"seen layer {r['ppm_detail']['seen_median_mm']:.3f} vs Poisson {r['poisson']['seen_median_mm']:.3f}, "
+                  f"never seen PPM {r['ppm']['unseen_median_mm']:.3f} vs Poisson {r['poisson']['unseen_median_mm']:.3f}: "
+                  f"layer {'at or below' if rows[s][lv]['detail_beats_poisson'] else 'NOT at or below'} Poisson")
     print(json.dumps({
+        **poisson_keys,
         "ppm_truth_median_mm": round(rows[worst_ppm][hardest]["ppm"]["median_mm"], 4),
         "ppm_truth_p95_mm": round(max(rows[s][hardest]["ppm"]["p95_mm"] for s in subjects), 4),
         "nricp_truth_median_mm": round(rows[worst_nricp][hardest]["nricp"]["median_mm"], 4),
@@ -234,7 +332,9 @@ def main() -> None:
         "per_subject": {s: {lv: {"ppm": {k: round(v, 4) for k, v in rows[s][lv]["ppm"].items()},
                                  "nricp": {k: round(v, 4) for k, v in rows[s][lv]["nricp"].items()},
                                  "ppm_detail": {k: round(v, 4) for k, v in rows[s][lv]["ppm_detail"].items()},
-                                 "layer": rows[s][lv]["layer"], "detail_beats_both": rows[s][lv]["detail_beats_both"]}
+                                 "layer": rows[s][lv]["layer"], "detail_beats_both": rows[s][lv]["detail_beats_both"],
+                                 "regions": {m: {k: round(v, 4) for k, v in d.items()}
+                                             for m, d in rows[s][lv]["regions"].items()}}
                             for lv in grades} for s in subjects},
     }))
 

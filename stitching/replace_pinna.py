@@ -74,6 +74,18 @@ def _covered_by_pinna(head: trimesh.Trimesh, pinna: trimesh.Trimesh, rim: np.nda
     return near_pinna & lateral & outline, centre, plane
 
 
+def under_pinna(points_mm: np.ndarray, pinna: trimesh.Trimesh, *, gap_mm: float = 0.0, reach_mm: float = 25.0,
+                pinna_source: str = "pinna mesh") -> np.ndarray:
+    """Which of ``points_mm`` (n, 3; mm, project frame) lie in the region the stitch replaces under an aligned pinna
+    (near it, on its side of the head, inside its rim grown by ``gap_mm``): the region a pinna is judged over."""
+    rim = _check_pinna(pinna, pinna_source)
+
+    class _Points:  # _covered_by_pinna reads only the vertices of the head
+        vertices = np.asarray(points_mm, dtype=np.float64)
+
+    return _covered_by_pinna(_Points(), pinna, rim, gap_mm, reach_mm)[0]
+
+
 def _components(mesh: trimesh.Trimesh, faces: np.ndarray) -> list[np.ndarray]:
     """The edge-connected parts of ``faces`` (face indices of ``mesh``), each as face indices of ``mesh``."""
     part = trimesh.Trimesh(mesh.vertices, mesh.faces[faces], process=False)

@@ -1,0 +1,98 @@
+"""Issue 56: from the evaluation's fixed hard scan, how near the true ear do the PPM, its personal-detail layer, the
+scan made watertight by screened Poisson reconstruction, and layers drawn towards that reconstruction (instead of the
+raw scan) come, over the region the stitch replaces?
+
+    .venv/bin/python studies/layer_evidence.py --subject P143 [--trim-mm 2.0]
+
+Reads the committed hard scan's workflow outputs (results/<subject>/controls/hard/: the scan and its prepared target;
+results/<subject>/controls/ppm_hard/align/aligned_pinna.ply: the PPM fitted to it) and the clean crop (the truth).
+Prints, per surface, truth -> surface and surface -> truth median / p95 (mm) over the stitched region, and truth ->
+surface over the parts the scan saw (a scan point within 2 mm) and never saw. Candidate layers: the packaged layer
+towards the reconstruction trimmed to ``--trim-mm`` of the prepared scan (a denoised surface where the scan saw the
+ear), and variants of its settings (``ppm.align.detail.DetailSettings``). Last line: JSON of every surface's figures.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "studies"))
+
+#: Settings tried with the reconstruction as evidence (besides the packaged ones).
+VARIANTS = {
+    "reach 8 mm": {"reach_mm": 8.0, "max_displacement_mm": 10.0},
+    "reach 8 mm, normals 60 deg": {"reach_mm": 8.0, "max_displacement_mm": 10.0, "normal_agreement_deg": 60.0},
+    "facing pairs": {"facing_pairs": True},
+    "facing pairs, reach 8 mm, spikes 3 mm": {"facing_pairs": True, "reach_mm": 8.0, "max_displacement_mm": 10.0,
+                                              "spike_mm": 3.0},
+}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--subject", default="P143")
+    parser.add_argument("--trim-mm", type=float, default=2.0)
+    args = parser.parse_args()
+    import bpy  # noqa: F401  (before pymeshlab)
+    import numpy as np
+    import trimesh
+    from scipy.spatial import cKDTree
+
+    from committed import SEEN_MM, SONICOM, require_workflow_files
+    from ppm.align import prepare_target
+    from ppm.align.detail import DetailSettings, personal_detail
+    from ppm.align.report import reverse_distances_mm
+    from ppm.align.target import Target
+    from stitching.reconstruction import poisson_surface, trimmed_near
+    from stitching.replace_pinna import under_pinna
+
+    base = ROOT / "results" / args.subject / "controls"
+    scan_path, target_path = base / "hard" / "scan.ply", base / "hard" / "target" / "pinna_target.ply"
+    fit_path = base / "ppm_hard" / "align" / "aligned_pinna.ply"
+    require_workflow_files(scan_path, target_path, fit_path)
+    truth = prepare_target(SONICOM / args.subject / "pinna_left_crop.ply")
+    hard = prepare_target(target_path, side="left", segment=False)
+    scan = trimesh.load(scan_path, process=False, force="mesh")
+    fit = trimesh.load(fit_path, process=False, force="mesh")
+    vertices, faces = np.asarray(fit.vertices), np.asarray(fit.faces)
+    inside = under_pinna(truth.points_mm, fit)
+    seen = (cKDTree(scan.vertices).query(truth.points_mm)[0] < SEEN_MM)[inside]
+    reconstruction = poisson_surface(scan, source=str(scan_path))
+    figures: dict[str, dict] = {}
+
+    def measure(name: str, surface_vertices, surface_faces) -> None:
+        surface = trimesh.Trimesh(surface_vertices, surface_faces, process=False)
+        forward = trimesh.proximity.closest_point(surface, truth.points_mm[inside])[1]
+        backward, counts = reverse_distances_mm(truth, surface_vertices, boundary_margin_mm=1.0)
+        backward = backward[counts & under_pinna(np.asarray(surface_vertices), fit)]
+        parts = {"truth_to_surface": forward, "surface_to_truth": backward, "seen": forward[seen],
+                 "unseen": forward[~seen]}
+        figures[name] = {key: [round(float(np.median(v)), 3), round(float(np.percentile(v, 95)), 3)]
+                         for key, v in parts.items()}
+        print(f"{args.subject} {name:44s} " + "  ".join(f"{key} {m:.3f}/{p:.3f}"
+                                                       for key, (m, p) in figures[name].items()), flush=True)
+
+    def as_target(surface: trimesh.Trimesh) -> Target:
+        mesh = trimesh.Trimesh(surface.vertices, surface.faces, process=False)
+        return Target(np.asarray(mesh.vertices), np.asarray(mesh.vertex_normals), mesh, "screened Poisson")
+
+    print(f"{args.subject}: {int(inside.sum())} truth points in the stitched region, {int(seen.sum())} seen by the scan")
+    measure("PPM (ppm_hard)", vertices, faces)
+    measure("screened Poisson, trimmed 4 mm", reconstruction.surface.vertices, reconstruction.surface.faces)
+    measure("layer towards the scan (packaged)", vertices + personal_detail(vertices, faces, hard).displacement_mm,
+            faces)
+    evidence = as_target(trimmed_near(reconstruction.closed, hard.points_mm, args.trim_mm))
+    measure(f"layer towards Poisson ({args.trim_mm:g} mm)",
+            vertices + personal_detail(vertices, faces, evidence).displacement_mm, faces)
+    for name, overrides in VARIANTS.items():
+        layer = personal_detail(vertices, faces, evidence, DetailSettings.packaged(**overrides))
+        measure(f"layer towards Poisson, {name}", vertices + layer.displacement_mm, faces)
+    print(json.dumps({"subject": args.subject, "trim_mm": args.trim_mm, "surfaces": figures}))
+
+
+if __name__ == "__main__":
+    main()

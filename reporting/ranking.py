@@ -132,3 +132,90 @@ def ranking_markdown(rows: list[dict]) -> str:
                          f"{_percent(r['share_removed_same_solver'])} |")
         parts.append("\n".join(lines))
     return "\n\n".join(parts) + "\n"
+
+
+#: The README's headline table, between these markers: every condition and alternative per subject.
+HEADLINE_BEGIN = "<!-- headline: python -m reporting.ranking --update README.md -->"
+HEADLINE_END = "<!-- end of headline -->"
+#: The headline's rows: (label, conditions it summarises); the first matching condition of a subject fills a cell,
+#: a group of several gives its range.
+HEADLINE_ROWS = (
+    ("`ppm_detail`: the fitted PPM with its personal-detail layer", ("ppm_detail",)),
+    ("`ppm`: the fitted PPM", ("ppm",)),
+    ("`own_pinna`: its own pinna put back (the control)", ("own_pinna",)),
+    ("`ppm_detail_hard`: the layered PPM from a defective scan", ("ppm_detail_hard",)),
+    ("`ppm_hard`: the PPM from the defective scan", ("ppm_hard",)),
+    ("`scan_hard`: the defective scan made watertight (screened Poisson)", ("scan_hard",)),
+    ("`nricp_hard`: free-form NRICP from the defective scan", ("nricp_hard",)),
+    ("`default_ppm`: the template ear, posed only", ("default_ppm",)),
+    ("another subject's HRTFs (each of the other two)", ("other_",)),
+    ("dummy heads (KU100, KEMAR)", ("ku100", "kemar")),
+    ("measured listeners (two SONICOM, one LISTEN)", ("axd1", "axd2", "irc1003")),
+)
+
+
+def _cell(rows: list[dict]) -> str:
+    if not rows:
+        return "–"
+    if len(rows) == 1:
+        r = rows[0]
+        share = "" if r["share_removed"] is None else f" ({_percent(r['share_removed'])})"
+        return f"{r['delta_qe_pp']:+.2f} pp, {r['delta_pe_deg']:+.2f}°{share}"
+    qe = sorted(r["delta_qe_pp"] for r in rows)
+    pe = sorted(r["delta_pe_deg"] for r in rows)
+    return f"{qe[0]:+.1f} to {qe[-1]:+.1f} pp, {pe[0]:+.1f} to {pe[-1]:+.1f}°"
+
+
+def headline_markdown(rows: list[dict], not_solved: dict[str, dict[str, str]] | None = None) -> str:
+    """The README's headline: per condition or alternative (:data:`HEADLINE_ROWS`) and subject, ΔQE and ΔPE by the
+    paper's protocol and the share of the median non-individual penalty removed; "not built" where the pipeline
+    refused a condition (``not_solved``: config evaluation.not_solved)."""
+    subjects = list(dict.fromkeys(r["subject"] for r in rows))
+    not_solved = not_solved or {}
+    lines = ["| condition or alternative | " + " | ".join(subjects) + " |", "|---" * (len(subjects) + 1) + "|"]
+    for label, names in HEADLINE_ROWS:
+        cells = []
+        for subject in subjects:
+            chosen = [r for r in rows if r["subject"] == subject
+                      and any(r["condition"] == n or (n.endswith("_") and r["condition"].startswith(n)) for n in names)]
+            refused = [n for n in names if n in (not_solved.get(subject) or {})]
+            cells.append("not built (the stitch refuses it)" if refused and not chosen else _cell(chosen))
+        bold = names == ("ppm_detail",)
+        lines.append(f"| {label} | " + " | ".join(f"**{c}**" if bold and c != "–" else c for c in cells) + " |")
+    return "\n".join(lines)
+
+
+def update_readme(readme: Path, table: str) -> None:
+    """Rewrite the block between :data:`HEADLINE_BEGIN` and :data:`HEADLINE_END` of ``readme`` with ``table``."""
+    from core.atomic import write_text_atomic  # noqa: PLC0415
+
+    text = readme.read_text()
+    if HEADLINE_BEGIN not in text or HEADLINE_END not in text:
+        raise SystemExit(f"{readme}: no headline markers ({HEADLINE_BEGIN} ... {HEADLINE_END})")
+    head, rest = text.split(HEADLINE_BEGIN, 1)
+    tail = rest.split(HEADLINE_END, 1)[1]
+    write_text_atomic(readme, f"{head}{HEADLINE_BEGIN}\n{table}\n{HEADLINE_END}{tail}")
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Print the headline table from an evaluation's ranking.csv, or write it into the README (``--update``)."""
+    import argparse  # noqa: PLC0415
+
+    import yaml  # noqa: PLC0415
+
+    root = Path(__file__).resolve().parents[1]
+    parser = argparse.ArgumentParser(description="the README's headline table from an evaluation's ranking.csv")
+    parser.add_argument("--ranking", type=Path, default=root / "evaluation" / "sonicom" / "ranking.csv")
+    parser.add_argument("--config", type=Path, default=root / "config" / "paper_sonicom.yaml")
+    parser.add_argument("--update", type=Path, default=None, metavar="README.md")
+    args = parser.parse_args(argv)
+    not_solved = (yaml.safe_load(args.config.read_text()).get("evaluation") or {}).get("not_solved") or {}
+    table = headline_markdown(read_ranking_csv(args.ranking), not_solved)
+    if args.update:
+        update_readme(args.update, table)
+    else:
+        print(table)
+
+
+if __name__ == "__main__":
+    main()

@@ -214,3 +214,29 @@ def test_a_sofa_file_with_the_same_content_keeps_its_committed_bytes(tmp_path):
     sofar.write_sofa(str(rewritten), sofa, compression=4)
     copy_sofa({("S", "ppm"): str(rewritten)}, repo / "sofa")
     assert not same_sofa_content(repo / "sofa" / "S_ppm_left_HRTF.sofa", source)
+
+
+def test_the_readmes_headline_is_the_committed_ranking():
+    """The README's headline table is made from evaluation/sonicom/ranking.csv (python -m reporting.ranking
+    --update README.md): every condition and alternative with ΔQE, ΔPE and the share of the penalty removed."""
+    import yaml
+
+    from reporting.ranking import HEADLINE_BEGIN, HEADLINE_END, headline_markdown, read_ranking_csv
+
+    not_solved = yaml.safe_load((ROOT / "config" / "paper_sonicom.yaml").read_text())["evaluation"]["not_solved"]
+    table = headline_markdown(read_ranking_csv(COMMITTED / "ranking.csv"), not_solved)
+    readme = (ROOT / "README.md").read_text()
+    assert readme.split(HEADLINE_BEGIN, 1)[1].split(HEADLINE_END, 1)[0].strip() == table.strip()
+    assert "another subject's HRTFs" in table and "not built (the stitch refuses it)" in table
+
+
+def test_a_headline_cell_gives_one_condition_with_its_share_and_a_group_as_a_range():
+    from reporting.ranking import headline_markdown
+
+    rows = [{"subject": "S", "condition": c, "kind": k, "delta_qe_pp": q, "delta_pe_deg": p, "share_removed": s}
+            for c, k, q, p, s in (("ppm_detail", "personal", 0.5, 0.2, 0.98), ("other_A", "dataset subject", 12.0, 7.0, 0.2),
+                                  ("other_B", "dataset subject", 18.0, 9.5, -0.2))]
+    table = headline_markdown(rows, {"S": {"nricp_hard": "refused"}})
+    assert "| **+0.50 pp, +0.20° (98 %)** |" in table
+    assert "| +12.0 to +18.0 pp, +7.0 to +9.5° |" in table
+    assert "not built (the stitch refuses it)" in table and "| `scan_hard`: the defective scan made watertight (screened Poisson) | – |" in table

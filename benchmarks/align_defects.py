@@ -24,7 +24,7 @@ and, mapped back into the head frame, its surface lies within 1 mm (median, both
 of the same scan (the vertex-to-vertex gap, which also counts vertices sliding along the surface, is printed).
 
 Run: .venv/bin/python benchmarks/align_defects.py [--poses 4] [--subjects P039 P067 P143] [--schedule to_0.007]
-     [--no-poisson]
+     [--no-poisson] [--kinds smooth]
 (~37 min alone with every schedule tried; --schedule skips the tuning, --poses 2 halves the posed fits)
 Prints readable lines, then one JSON line.
 """
@@ -44,7 +44,7 @@ from align_real import loo_template
 from ppm.align import AlignSettings, align, prepare_target
 from ppm.align.any_pose import PoseUncertainError
 from ppm.align.pose_by_fit import align_any_pose
-from ppm.align.defects import defective_scan, levels, random_pose
+from ppm.align.defects import defective_scan, kinds, levels, random_pose
 from ppm.align.detail import personal_detail
 from ppm.align.pose import apply_similarity
 from ppm.align.report import one_sided_distances_mm, reverse_distances_mm
@@ -138,6 +138,8 @@ def main() -> None:
                         help="use this NRICP schedule instead of trying all at the hardest level (faster; the full run "
                              "picked to_0.007)")
     parser.add_argument("--no-poisson", action="store_true", help="leave out the screened Poisson baseline")
+    parser.add_argument("--kinds", nargs="*", default=[], choices=kinds(),
+                        help="other kinds of scan to judge after the graded levels (smooth: a photogrammetry scan)")
     parser.add_argument("--fold-weight", type=float, default=AlignSettings.fold_weight,
                         help=f"the aligner's fold barrier weight (default {AlignSettings.fold_weight})")
     args = parser.parse_args()
@@ -149,6 +151,7 @@ def main() -> None:
                                        if (p / "pinna_left_crop.ply").is_file())
     grades = levels()
     hardest = grades[-1]
+    measured = grades + list(args.kinds)  # the graded levels, then other kinds (smooth), judged alike
     rng = np.random.default_rng(args.seed)
     rows: dict[str, dict[str, dict]] = {}
     keep: dict[str, tuple[trimesh.Trimesh, Target]] = {}  # per subject: LOO template, clean truth
@@ -163,7 +166,7 @@ def main() -> None:
         clean = trimesh.load(crop, process=False)
         rows[subject] = {}
         keep[subject] = (template, truth)
-        for level in grades:
+        for level in measured:
             scan = defective_scan(clean, level, rng, posed=False)
             target, result, seconds = fit_file(model, scan.mesh, work, f"{subject}_{level}", "project_frame",
                                                settings)
@@ -253,7 +256,7 @@ def main() -> None:
     print(f"NRICP: best schedule at {hardest} is {best}; used at every level")
     for subject in subjects:
         template, truth = keep[subject]
-        for level in grades:
+        for level in measured:
             row = rows[subject][level]
             if level == hardest:
                 nricp = nricp_by_schedule[best][subjects.index(subject)]
@@ -277,9 +280,9 @@ def main() -> None:
     worst_ppm = max(subjects, key=lambda s: rows[s][hardest]["ppm"]["median_mm"])
     worst_nricp = max(subjects, key=lambda s: rows[s][hardest]["nricp"]["median_mm"])
     worst_detail = max(subjects, key=lambda s: rows[s][hardest]["ppm_detail"]["median_mm"])
-    beats = [rows[s][lv]["detail_beats_both"] for s in subjects for lv in grades]
+    beats = [rows[s][lv]["detail_beats_both"] for s in subjects for lv in measured]
     successes = [r["success"] for r in pose_results]
-    with_poisson = [(s, lv) for s in subjects for lv in grades if "poisson" in rows[s][lv]["regions"]]
+    with_poisson = [(s, lv) for s in subjects for lv in measured if "poisson" in rows[s][lv]["regions"]]
     poisson_keys = {}
     if with_poisson:
         def region(s: str, lv: str, method: str, key: str) -> float:
@@ -325,7 +328,7 @@ def main() -> None:
         "detail_beats_both": round(float(np.mean(beats)), 4),
         "detail_seconds_per_fit": round(float(np.mean(detail_seconds)), 1),
         "pose_success_rate": round(float(np.mean(successes)), 4) if successes else None,
-        "levels": grades, "subjects": subjects,
+        "levels": measured, "subjects": subjects,
         "seconds_per_fit": round(float(np.mean(fit_seconds)), 1) if fit_seconds else None,
         "nricp_schedule": best, "nricp_seconds_per_fit": round(float(np.mean(nricp_seconds)), 1),
         "poses": pose_results,
@@ -335,7 +338,7 @@ def main() -> None:
                                  "layer": rows[s][lv]["layer"], "detail_beats_both": rows[s][lv]["detail_beats_both"],
                                  "regions": {m: {k: round(v, 4) for k, v in d.items()}
                                              for m, d in rows[s][lv]["regions"].items()}}
-                            for lv in grades} for s in subjects},
+                            for lv in measured} for s in subjects},
     }))
 
 

@@ -34,6 +34,31 @@ def levels() -> list[str]:
     return list(defect_settings()["levels"])
 
 
+def kinds() -> list[str]:
+    """Other kinds of scan beside the graded levels (``smooth``: a photogrammetry scan's flattened ridges and
+    filled cavities), each also a name :func:`defective_scan` takes as its level."""
+    return list(defect_settings().get("kinds") or {})
+
+
+def recipe_of(level: str) -> dict:
+    """The defects of a level or kind: a kind's base level with its own additions (``laplacian``)."""
+    settings = defect_settings()
+    if level in settings["levels"]:
+        return dict(settings["levels"][level])
+    if level in (settings.get("kinds") or {}):
+        kind = dict(settings["kinds"][level])
+        return {**settings["levels"][kind.pop("base")], **kind}
+    raise PpmError(f"unknown defect level {level!r}; use one of {levels() + kinds()}")
+
+
+def smoothed(mesh: trimesh.Trimesh, iterations: int, lamb: float) -> trimesh.Trimesh:
+    """A copy of ``mesh`` (mm) after ``iterations`` steps of umbrella-operator Laplacian smoothing of weight ``lamb``
+    (trimesh.smoothing.filter_laplacian): ridges sink, cavities fill, as a photogrammetry scan shows an ear."""
+    out = trimesh.Trimesh(np.asarray(mesh.vertices).copy(), np.asarray(mesh.faces).copy(), process=False)
+    trimesh.smoothing.filter_laplacian(out, lamb=float(lamb), iterations=int(iterations), volume_constraint=False)
+    return out
+
+
 @dataclasses.dataclass(frozen=True)
 class DefectiveScan:
     """A defective, posed copy of a clean crop.
@@ -145,15 +170,14 @@ def defective_scan(clean: trimesh.Trimesh, level: str, rng: np.random.Generator,
                    unit: str = "mm", mirrored: bool = False) -> DefectiveScan:
     """The clean crop (mm, head frame) with the defects of `level`; with `posed`, in a random pose and
     `unit` (else in the head frame, millimetres, `unit` and `mirrored` ignored)."""
-    all_levels = defect_settings()["levels"]
-    if level not in all_levels:
-        raise PpmError(f"unknown defect level {level!r}; use one of {list(all_levels)}")
-    recipe = all_levels[level]
+    recipe = recipe_of(level)
     scanner = recipe["scanner"]
     seen = visible_vertices(clean, scanner_views(scanner["views"], scanner["cone_deg"]), scanner["grazing_deg"])
     scan = crop_to_region(clean, seen)
     kept_share = float(scan.area / clean.area)
     scan = cut_partially(scan, recipe["partial_crop_share"], rng)
+    if "laplacian" in recipe:  # a photogrammetry scan: smoothed before it is sampled and noised
+        scan = smoothed(scan, recipe["laplacian"]["iterations"], recipe["laplacian"]["lambda"])
     scan = resample(scan, recipe["resample_mm"])
     scan = add_scan_defects(scan, rng, noise_mm=recipe["noise_mm"], holes=0, outlier_share=recipe["outlier_share"])
     scan = add_spikes(scan, recipe["spike_share"], rng)
@@ -177,6 +201,6 @@ def hard_scan_of(crop_path, subject: str, level: str, seed: int) -> tuple[trimes
     clean = load_left_pinna(crop_path)
     draw = defective_scan(clean, level, np.random.default_rng(subject_seed(subject, seed)), posed=False)
     report = {"crop": str(crop_path), "subject": subject, "level": level, "seed": int(seed),
-              "defects": defect_settings()["levels"][level], "kept_share": round(draw.kept_share, 4),
+              "defects": recipe_of(level), "kept_share": round(draw.kept_share, 4),
               "vertices": int(len(draw.mesh.vertices)), "faces": int(len(draw.mesh.faces))}
     return draw.mesh, report

@@ -99,7 +99,8 @@ def _sync(backend):
     return time.perf_counter()
 
 
-def solve(inputs: Path, out: Path, backend_name: str, budget_s: float, heads: list[str]) -> None:
+def solve(inputs: Path, out: Path, backend_name: str, budget_s: float, heads: list[str],
+          assembly: str = "fused") -> None:
     """Solve the prepared heads on ``backend_name`` (cupy; numpy for a dry run), writing results as they come."""
     start_all = time.perf_counter()
     out.mkdir(parents=True, exist_ok=True)
@@ -125,6 +126,22 @@ def solve(inputs: Path, out: Path, backend_name: str, budget_s: float, heads: li
     info["twin_n"] = int(twin.dof_count)
     print(f"twin: n = {twin.dof_count}, max |GPU - CPU| / max |CPU| = {info['twin_max_relative_difference']:.2e}",
           flush=True)
+    # 1b. the fused far-pair kernel (mesh2hrtf_io/bem_fused.py) against the same CPU twin; the heads use it where it
+    # agrees to 1e-10 (else the array code, with the reason kept)
+    fused = False
+    if backend_name == "cupy" and assembly == "fused":
+        try:
+            on_fused = backend.to_host(bem_arrays.system_matrix(bem_arrays.DeviceSurface(twin, backend), k, 1j / k,
+                                                                budget_bytes=budget, fused=True))
+            info["fused_twin_max_relative_difference"] = float(np.abs(on_fused - on_cpu).max() / np.abs(on_cpu).max())
+            fused = info["fused_twin_max_relative_difference"] < 1e-10
+            info["assembly"] = "fused" if fused else "arrays (the fused kernel missed the twin by 1e-10)"
+        except Exception as error:  # numba-cuda missing or failing on this machine: the array code solves
+            info["assembly"] = f"arrays (the fused kernel failed: {type(error).__name__}: {error})"
+        print(f"fused kernel: {info['assembly']}, twin difference {info.get('fused_twin_max_relative_difference')}",
+              flush=True)
+    else:
+        info["assembly"] = "arrays"
     # 2. the LU: cuSOLVER (cupyx) against PyTorch at the head's size
     if backend_name == "cupy":
         info["lu"] = _lu_comparison(15735)
@@ -149,7 +166,7 @@ def solve(inputs: Path, out: Path, backend_name: str, budget_s: float, heads: li
             [pressure] = bem_arrays.solve_sources_arrays(
                 dev, [(problem["ear_elements"], float(problem["velocity_m_s"]))], problem["points_m"],
                 float(frequency), float(problem["speed_of_sound_m_s"]), float(problem["density_kg_m3"]),
-                timings=timings, budget_bytes=budget)
+                timings=timings, budget_bytes=budget, fused=fused)
             timings["total"] = _sync(backend) - t0
             pressures.append(pressure)
             phases.append(timings)
@@ -363,7 +380,11 @@ def report(inputs: Path, results: Path) -> dict:
     (results / "report.json").write_text(json.dumps({"figures": figures, "per_head": per_head,
                                                      "protocol": protocol}, indent=2, default=float))
     main_head = per_head.get("original") or next(iter(per_head.values()))
-    summary = {"gpu": figures["gpu"], "n_vertices": main_head["n_vertices"],
+    main_phases = json.loads(str(np.load(results / f"{next(h for h in ('original', *solved) if h in per_head)}"
+                                         "_pressures.npz")["phases_json"]))
+    summary = {"gpu": figures["gpu"], "n_vertices": main_head["n_vertices"], "assembly": info.get("assembly", "arrays"),
+               "assembly_seconds": round(float(np.median([p.get("assembly", 0.0) for p in main_phases])), 3),
+               "lu_seconds": round(float(np.median([p.get("lu", 0.0) for p in main_phases])), 3),
                "seconds_per_frequency": round(main_head["seconds_per_frequency"], 2),
                "seconds_per_head": round(main_head["seconds_per_head"], 1),
                "max_median_db": round(max(h["max_median_db"] for h in per_head.values()), 3),
@@ -397,6 +418,9 @@ def main() -> None:
     parser.add_argument("--backend", choices=["cupy", "numpy"], default="cupy")
     parser.add_argument("--budget-s", type=float, default=420.0, help="stop starting new heads after this many seconds")
     parser.add_argument("--heads", default=",".join(HEADS))
+    parser.add_argument("--assembly", choices=["fused", "arrays"], default="fused",
+                        help="far pairs by the fused CUDA kernel (mesh2hrtf_io/bem_fused.py; the array code where it "
+                             "misses the CPU twin) or by the array code")
     args = parser.parse_args()
     heads = [h for h in args.heads.split(",") if h]
     if args.stage in ("all", "solve") and args.backend == "cupy" and not gpu_here():
@@ -406,7 +430,7 @@ def main() -> None:
     if args.stage in ("all", "prepare"):
         prepare(args.inputs, heads)
     if args.stage in ("all", "solve"):
-        solve(args.inputs, args.out, args.backend, args.budget_s, heads)
+        solve(args.inputs, args.out, args.backend, args.budget_s, heads, args.assembly)
     if args.stage == "numcalc-sphere":
         numcalc_sphere(args.inputs, args.out, args.numcalc)
     if args.stage in ("all", "report"):

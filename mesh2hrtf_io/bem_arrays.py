@@ -395,9 +395,15 @@ def mass_terms(surface: SurfaceArrays) -> tuple[np.ndarray, np.ndarray, np.ndarr
 
 
 def system_matrix(dev: DeviceSurface, wavenumber: float, coupling: complex, with_mass: bool = True,
-                  budget_bytes: float = 0.5e9):
-    """The dense Burton–Miller system ``coupling * W - K (+ M / 2)`` on the backend."""
-    matrix = far_pairs(dev, wavenumber, coupling, budget_bytes=budget_bytes)
+                  budget_bytes: float = 0.5e9, fused: bool = False):
+    """The dense Burton–Miller system ``coupling * W - K (+ M / 2)`` on the backend; with ``fused`` its far pairs by
+    the one-pass CUDA kernel (:mod:`mesh2hrtf_io.bem_fused`: CuPy, or NumPy under numba's CUDA simulator)."""
+    if fused:
+        from .bem_fused import far_pairs_fused  # noqa: PLC0415
+
+        matrix = far_pairs_fused(dev, wavenumber, coupling)
+    else:
+        matrix = far_pairs(dev, wavenumber, coupling, budget_bytes=budget_bytes)
     add_sparse(dev, matrix, *touching_pairs(dev, wavenumber, coupling, budget_bytes))
     if with_mass:
         rows, columns, values = mass_terms(dev.surface)
@@ -520,12 +526,13 @@ def pressure_at_points(dev: DeviceSurface, points_m, coefficients, ears: list[np
 def solve_sources_arrays(dev: DeviceSurface, sources: list[tuple[np.ndarray, float]], points_m: np.ndarray,
                          frequency_hz: float, speed_of_sound_m_s: float, density_kg_m3: float,
                          system=None, timings: dict | None = None, budget_bytes: float = 0.5e9,
-                         far_geometry=None) -> list[np.ndarray]:
+                         far_geometry=None, fused: bool = False) -> list[np.ndarray]:
     """Pressure (Pa, e^{-iωt}) at ``points_m`` for each source (ear element indices, normal velocity m/s): one
     system matrix and LU per frequency, every source a right-hand side. Returns host arrays. ``system``: a matrix
     assembled by another path (the CPU numba pass), used instead of assembling it here; ``timings``: filled with the
     seconds of each phase (assembly, lu, rhs, solve, potential); ``budget_bytes``: memory of the work arrays;
-    ``far_geometry`` (:class:`burton_miller.FarFieldGeometry`, NumPy only): the potentials by its numba pass."""
+    ``far_geometry`` (:class:`burton_miller.FarFieldGeometry`, NumPy only): the potentials by its numba pass;
+    ``fused``: the far pairs by the one-pass CUDA kernel (:mod:`mesh2hrtf_io.bem_fused`)."""
     import time  # noqa: PLC0415
 
     from .errors import Mesh2HrtfIoError  # noqa: PLC0415
@@ -542,7 +549,7 @@ def solve_sources_arrays(dev: DeviceSurface, sources: list[tuple[np.ndarray, flo
 
     k = 2.0 * np.pi * frequency_hz / speed_of_sound_m_s
     coupling = 1j / k
-    matrix = (system_matrix(dev, k, coupling, budget_bytes=budget_bytes) if system is None
+    matrix = (system_matrix(dev, k, coupling, budget_bytes=budget_bytes, fused=fused) if system is None
               else backend.asarray(system))
     lap("assembly")
     factors = backend.lu_factor(matrix)

@@ -104,10 +104,33 @@ def _fit_distances(summary_json: Path) -> dict:
     return summary["ppm_detail"] if "ppm_detail" in summary else summary["distance_target_to_ppm"]
 
 
+def _coverage_html(coverage: dict[str, list[dict]] | None) -> str:
+    """The page's section on what each ear's scan saw (:mod:`reporting.coverage`), with its advice."""
+    if not coverage:
+        return ""
+    from .coverage import SEEN_MM, coverage_advice  # noqa: PLC0415
+
+    regions = list(dict.fromkeys(row["region"] for rows in coverage.values() for row in rows))
+    share = {side: {row["region"]: row["seen_share"] for row in rows} for side, rows in coverage.items()}
+    table = "".join(f"<tr><td style='text-align:left'>{html.escape(region)}</td>"
+                    + "".join(f"<td>{100 * share[side][region]:.0f} %</td>" if region in share[side] else "<td>–</td>"
+                              for side in coverage) + "</tr>" for region in regions)
+    advice = "".join(f"<li>{html.escape(line)}</li>" for line in coverage_advice(coverage))
+    pictures = "".join(f"<figure><img src='coverage_{side}.png' width='420'><figcaption>{side} ear: distance to the "
+                       "scan (seen under 2 mm)</figcaption></figure>" for side in coverage)
+    return (f"<h2>What the scans saw</h2><p>The share of each region of the fitted pinna with a scan point within "
+            f"{SEEN_MM:g} mm: where the scan saw nothing, the PPM's template shape stands (and the personal-detail "
+            f"layer keeps it).</p><ul>{advice}</ul><table><tr><th>region</th>"
+            + "".join(f"<th>{side}</th>" for side in coverage) + f"</tr>{table}</table>{pictures}")
+
+
 def write_listener_report(name: str, base: str | os.PathLike, localisation: dict, planes_png: str | os.PathLike,
-                          out_html: str | os.PathLike, personal_detail: bool = False) -> None:
+                          out_html: str | os.PathLike, personal_detail: bool = False,
+                          coverage: dict[str, list[dict]] | None = None) -> None:
     """The listener's HTML page (beside ``base``'s results, linked relatively); ``personal_detail``: the fits carry
-    the personal-detail layer (``base/detail/<side>``), whose scan -> pinna distances the page gives."""
+    the personal-detail layer (``base/detail/<side>``), whose scan -> pinna distances the page gives; ``coverage``:
+    per ear the :func:`reporting.coverage.pinna_coverage` rows, shown with their advice and pictures
+    (``coverage_<side>.png`` beside the page)."""
     base, out_html = Path(base), Path(out_html)
     frame = json.loads((base / "prepared" / "frame.json").read_text())
     fit_dir = "detail" if personal_detail else "align"
@@ -146,6 +169,7 @@ Repairs: {html.escape('; '.join(frame['repairs']) or 'none')}.</p>
 <h2>Both ears fitted by the PPM{' with the personal-detail layer (shape key Personal_detail)' if personal_detail else ''}</h2>
 <table><tr><th>ear</th><th>median (mm)</th><th>p95 (mm)</th><th>for touch-up</th></tr>{fit_rows}</table>
 {pictures}
+{_coverage_html(coverage)}
 <p>Remeshed head: {remesh['n_triangles']:,} triangles, pinna edges {remesh['pinna_edge_mm']['median']:.2f} mm (left)
 and {remesh.get('right_pinna_edge_mm', {}).get('median', float('nan')):.2f} mm (right), median.</p>
 <h2>HRTFs</h2>

@@ -171,8 +171,13 @@ rule listener_report:
         remesh="results/listeners/{listener}/remesh/validation.json",
         hrtf="results/listeners/{listener}/hrtf/personal/HRTF.sofa",
         others=lambda wc: list(RUN.listener_comparisons(wc.listener).values()),
+        # what each ear's scan saw: the fitted (stitched) pinnae, their prepared scans, the template's landmarks
+        pinnae=lambda wc: [RUN.listener_pinna(wc.listener, side) for side in ("left", "right")],
+        targets=expand("results/listeners/{{listener}}/target/{side}/pinna_target.ply", side=("left", "right")),
+        landmarks=lambda wc: str(Path(RUN.listener_template()).parent / "landmarks.yaml"),
     output:
         html="results/listeners/{listener}/report.html",
+        coverage="results/listeners/{listener}/coverage.json",
         planes="results/listeners/{listener}/hrtf_planes.png",
         localisation="results/listeners/{listener}/localisation.json",
     log:

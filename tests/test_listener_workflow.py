@@ -106,3 +106,9 @@ def test_a_listener_gets_a_both_ear_hrir_set_on_the_full_grid(tmp_path, sonicom)
     assert all(np.isfinite(row["qe_percent"]) for row in localisation["sets"].values())
     page = (work / "results/listeners/cgtub/report.html").read_text()
     assert "What personalising buys" in page and "hrtf_planes.png" in page and "detail/left/aligned_pinna.blend" in page
+    # what each ear's scan saw: a share per region of the fitted pinna, advice, a picture per ear
+    coverage = json.loads((work / "results/listeners/cgtub/coverage.json").read_text())
+    assert set(coverage["ears"]) == {"left", "right"} and coverage["advice"]
+    whole = {side: next(r for r in rows if r["region"] == "whole pinna") for side, rows in coverage["ears"].items()}
+    assert all(0.5 < row["seen_share"] <= 1.0 for row in whole.values())
+    assert "What the scans saw" in page and (work / "results/listeners/cgtub/coverage_left.png").is_file()

@@ -1,0 +1,50 @@
+"""What a listener's ear scan saw (reporting/coverage.py): the share of each region of the fitted pinna with a scan
+point nearby, the advice where a region was not seen, and the report's section."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import trimesh
+
+from conftest import ROOT
+
+
+@pytest.fixture()
+def ear(sonicom):
+    """P143's clean crop as the fitted surface and the landmarks of its kept PPM fit (mm)."""
+    crop = trimesh.load(sonicom / "P143" / "pinna_left_crop.ply", process=False, force="mesh")
+    kept = json.loads((ROOT / "evaluation/sonicom/steps/P143/ppm/fit_landmarks.json").read_text())
+    return crop, {name: np.asarray(position) for name, position in kept["landmarks_mm"].items()}
+
+
+def test_a_hole_in_the_cymba_is_found_and_named(ear):
+    """A scan with every point within 6 mm of the cymba conchae landmark cut away: the cymba is unseen, the rest of
+    the pinna seen, and the advice names the left cymba conchae alone."""
+    from reporting.coverage import coverage_advice, pinna_coverage
+
+    crop, landmarks = ear
+    holed = crop.vertices[np.linalg.norm(crop.vertices - landmarks["cymba_conchae"], axis=1) > 6.0]
+    rows = {row["region"]: row for row in pinna_coverage(crop.vertices, crop.faces, holed, landmarks)}
+    assert rows["cymba conchae"]["seen_share"] < 0.1
+    assert rows["helix"]["seen_share"] == pytest.approx(1.0) and rows["cavum conchae"]["seen_share"] > 0.9
+    assert 0.95 < rows["whole pinna"]["seen_share"] < 1.0
+    advice = coverage_advice({"left": list(rows.values())})
+    assert len(advice) == 1 and advice[0].startswith("rescan the left cymba conchae")
+    whole = pinna_coverage(crop.vertices, crop.faces, crop.vertices, landmarks)
+    assert coverage_advice({"left": whole, "right": whole})[0].startswith("every region of both ears was seen")
+
+
+def test_the_listener_page_shows_what_each_scan_saw(ear, tmp_path):
+    from reporting.coverage import coverage_picture, pinna_coverage
+    from reporting.listener import _coverage_html
+
+    crop, landmarks = ear
+    half = crop.vertices[crop.vertices[:, 2] > 0.0]  # the upper half seen: the lobule is not
+    coverage = {"left": pinna_coverage(crop.vertices, crop.faces, half, landmarks),
+                "right": pinna_coverage(crop.vertices, crop.faces, crop.vertices, landmarks)}
+    page = _coverage_html(coverage)
+    assert "What the scans saw" in page and "rescan the left lobule" in page and "coverage_right.png" in page
+    picture = coverage_picture(crop.vertices, crop.faces, half, tmp_path / "coverage_left.png", "left ear")
+    assert picture.stat().st_size > 10_000

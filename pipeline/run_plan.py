@@ -127,13 +127,16 @@ class RunPlan:
     def evaluation_conditions(self, subject: str) -> list[str]:
         """The solved conditions of a subject's evaluation (config evaluation.conditions); a control only for the
         subjects of evaluation.<control>_subjects (original_subjects, own_pinna_subjects, default_ppm_subjects,
-        ppm_detail_subjects; hard_subjects for the three *_hard conditions), all when that list is empty; never
-        one that evaluation.not_solved says the pipeline could not build for the subject."""
+        ppm_detail_subjects; hard_subjects for the *_hard conditions, or scan_hard_subjects where given for
+        scan_hard), all when that list is empty; never one that evaluation.not_solved says the pipeline could not
+        build for the subject."""
         evaluation = self.config["evaluation"]
         failed = self.not_solved(subject)
 
         def chosen(condition: str) -> bool:
-            key = "hard_subjects" if condition.endswith("_hard") else f"{condition}_subjects"
+            key = f"{condition}_subjects"
+            if key not in evaluation and condition.endswith("_hard"):
+                key = "hard_subjects"
             subjects = evaluation.get(key) or []  # ppm has no such list: always
             return (not subjects or subject in subjects) and condition not in failed
 

@@ -117,3 +117,25 @@ def full_grid(polar_step_deg: float = 5.0, radius_m: float = 1.2) -> EvaluationG
     ``polar_step_deg`` from -90 to 270 deg on each, at ``radius_m``. A new listener's HRTF set is solved on it."""
     return sagittal_grid("InterauralPolar", FULL_GRID_LATERAL_DEG, polar_step_deg, radius_m)
 
+
+
+def with_directions_of(grid: EvaluationGrid, extra: EvaluationGrid, tolerance_deg: float = 0.1,
+                       name: str | None = None) -> EvaluationGrid:
+    """``grid`` with every direction of ``extra`` it lacks (farther than ``tolerance_deg`` from each of its own),
+    those at ``extra``'s own distances (e.g. a listener's full grid at 1.2 m with SONICOM's 793 directions at
+    1.5 m, so that a comparison with the dataset keeps all of them). The added points are fan-triangulated for the
+    bookkeeping only (NumCalc never integrates over evaluation elements)."""
+    own = grid.points_m / np.linalg.norm(grid.points_m, axis=1, keepdims=True)
+    other = extra.points_m / np.linalg.norm(extra.points_m, axis=1, keepdims=True)
+    from scipy.spatial import cKDTree  # noqa: PLC0415
+
+    chord = 2.0 * np.sin(np.deg2rad(tolerance_deg) / 2.0)
+    missing = np.flatnonzero(cKDTree(own).query(other)[0] > chord)
+    if missing.size == 0:
+        return grid
+    added = extra.points_m[missing]
+    start = len(grid.points_m)
+    faces = (_fan(len(added), start) if len(added) >= 3
+             else np.array([[start + i, 0, 1] for i in range(len(added))]))  # one or two: tied to the grid's first
+    return EvaluationGrid(name or f"{grid.name}And{extra.name}", np.vstack([grid.points_m, added]),
+                          np.vstack([grid.faces, faces]))

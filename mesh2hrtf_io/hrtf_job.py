@@ -20,7 +20,7 @@ from core.progress import Progress
 from .constants import SPEED_OF_SOUND_M_S
 from .frequency_sets import describe_set, frequencies_from_spec
 from .errors import Mesh2HrtfIoError
-from .grids import full_grid, grid_from_sofa, sagittal_grid
+from .grids import full_grid, grid_from_sofa, sagittal_grid, with_directions_of
 from .project import write_project
 from .project_reader import read_project
 
@@ -34,7 +34,9 @@ def export_head_project(head_path: str | os.PathLike, project: str | os.PathLike
                         sources_json: str | os.PathLike | None = None) -> None:
     """Export ``head_path`` (mm) with ear-canal sources (config hrtf.ears) and the configured frequencies, on
     the sagittal-plane grid or, with ``grid_sofa``, on that SOFA file's source positions (grid "Directions",
-    e.g. the reference HRIRs' 793, so that solved and reference sets combine direction by direction). With
+    e.g. the reference HRIRs' 793, so that solved and reference sets combine direction by direction); with settings
+    grid "full" (a new listener) on the full grid, plus ``grid_sofa``'s directions where given
+    (:func:`mesh2hrtf_io.grids.with_directions_of`). With
     ``head_store`` (the variant's step store folder, for heads the pipeline built), the head is kept there too
     (:func:`mesh2hrtf_io.step_store.save_head`), so that a fresh clone solves, and restores, the very same mesh.
     With ``sources_json`` (a band mesh's, :func:`stitching.frequency_bands.write_band_head`), the sources are the
@@ -58,9 +60,14 @@ def export_head_project(head_path: str | os.PathLike, project: str | os.PathLike
     else:
         ears = {side: ear_canal_elements(head, side, source=str(head_path)) for side in sides}
     frequencies = frequencies_from_spec(settings["frequencies_hz"])
-    grid = (grid_from_sofa(grid_sofa, name="Directions") if grid_sofa
-            else full_grid(settings["polar_step_deg"]) if settings.get("grid") == "full"
-            else sagittal_grid(polar_step_deg=settings["polar_step_deg"]))
+    if settings.get("grid") == "full":  # a new listener: all round the head, with a dataset's directions where given
+        grid = full_grid(settings["polar_step_deg"])
+        if grid_sofa:
+            grid = with_directions_of(grid, grid_from_sofa(grid_sofa, name="Dataset"))
+    elif grid_sofa:
+        grid = grid_from_sofa(grid_sofa, name="Directions")
+    else:
+        grid = sagittal_grid(polar_step_deg=settings["polar_step_deg"])
     layout = write_project(project, head.vertices, head.faces, ears, [grid],
                            frequencies, source_type=SOURCE_TYPES[settings["ears"]], title=title or head_path.parent.name,
                            compute_hrirs=True, numcalc_cluster_size=settings.get("numcalc_cluster_size", "auto"),

@@ -223,8 +223,12 @@ class RunPlan:
 
     def grid_inputs(self, subject: str) -> dict:
         """With config hrtf.grid = reference_sofa, ``{"grid_sofa": the subject's reference SOFA}`` (its directions
-        are the project's grid), else nothing (a new listener has no reference: its grid is always "full")."""
-        if self.hrtf["grid"] != "reference_sofa" or self.is_listener(subject):
+        are the project's grid); for a new listener (always the "full" grid) the SOFA of config
+        listener.dataset_grid, whose directions are added to it, where given; else nothing."""
+        if self.is_listener(subject):
+            dataset = (self.config.get("listener") or {}).get("dataset_grid") or ""
+            return {"grid_sofa": dataset} if dataset else {}
+        if self.hrtf["grid"] != "reference_sofa":
             return {}
         given = self.given_reference_sofa(subject)
         if not given.is_file():

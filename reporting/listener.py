@@ -13,6 +13,7 @@ The report ranks them, as the evaluation's ranking does (:mod:`reporting.ranking
 """
 from __future__ import annotations
 
+import dataclasses
 import html
 import json
 import os
@@ -27,10 +28,14 @@ LATERAL_ANGLES_DEG = (-20.0, 0.0, 20.0)
 QE_CALIBRATION_PERCENT = 8.0
 
 
-def listener_localisation(own_hrtf: str | os.PathLike, others: dict[str, str | os.PathLike | dict]) -> dict:
+def listener_localisation(own_hrtf: str | os.PathLike, others: dict[str, str | os.PathLike | dict],
+                          calibration_grid: str | os.PathLike | None = None) -> dict:
     """QE/PE of the own set (``own_hrtf``: the listener's both-ear HRTF SOFA) as its own template at S for 8 %
     QE, and of each other set (name -> a SOFA file, HRIR or HRTF, or {file, kind[, sampling_rate_hz]} as
-    :class:`reporting.nonindividual.MeasuredSet` reads it) with the own template at that S."""
+    :class:`reporting.nonindividual.MeasuredSet` reads it) with the own template at that S. With
+    ``calibration_grid`` (a SOFA file, config listener.dataset_grid, whose directions the own set was solved on too),
+    the headline S is calibrated on those directions: a dataset's grid, as the evaluation calibrates, instead of the
+    denser full grid, on which the same QE needs a far sharper listener."""
     import sofar  # noqa: PLC0415
 
     from amt_bridge.hrtf_set import on_common_directions, read_hrtf_set  # noqa: PLC0415
@@ -40,11 +45,21 @@ def listener_localisation(own_hrtf: str | os.PathLike, others: dict[str, str | o
 
     frequencies = np.asarray(sofar.read_sofa(str(own_hrtf), verify=False, verbose=False).N)
     own = read_hrtf_set(own_hrtf)
-    model = LocalisationModel(own, own, list(LATERAL_ANGLES_DEG))
+    calibrated_on = own
+    if calibration_grid:
+        from mesh2hrtf_io.grids import grid_from_sofa  # noqa: PLC0415
+
+        points = grid_from_sofa(calibration_grid).points_m
+        azimuth = np.degrees(np.arctan2(points[:, 1], points[:, 0]))
+        elevation = np.degrees(np.arcsin(points[:, 2] / np.linalg.norm(points, axis=1)))
+        directions = dataclasses.replace(own, irs=np.zeros((len(points), 2, own.irs.shape[2])) + own.irs[:1],
+                                         azimuth_deg=azimuth, elevation_deg=elevation, source=str(calibration_grid))
+        calibrated_on = on_common_directions(own, directions, 0.1)[0]
+    model = LocalisationModel(calibrated_on, calibrated_on, list(LATERAL_ANGLES_DEG))
     sensitivity = model.calibrate(QE_CALIBRATION_PERCENT, closest=True)
     reference = model.predict(sensitivity).as_dict()
     rows = {"own": {"qe_percent": reference["qe_percent"], "pe_deg": reference["pe_deg"],
-                    "directions": int(own.irs.shape[0])}}
+                    "directions": int(calibrated_on.irs.shape[0]), "sensitivity_db": sensitivity}}
     for name, given in others.items():
         entry = given if isinstance(given, dict) else {"file": str(given), "kind": "other person"}
         measured = MeasuredSet.from_config({"name": name, **entry})
@@ -145,7 +160,8 @@ def write_listener_report(name: str, base: str | os.PathLike, localisation: dict
                  else f"<td>{row['gain_qe_pp']:+.1f}</td><td>{row['gain_pe_deg']:+.1f}</td>")
         kind = "personal (the template)" if set_name == "own" else row.get("kind", "other person")
         return (f"<tr><td>{html.escape(set_name)}</td><td style='text-align:left'>{html.escape(kind)}</td>"
-                f"<td>{row['directions']}</td><td>{row['qe_percent']:.1f}</td><td>{row['pe_deg']:.1f}</td>{gains}</tr>")
+                f"<td>{row['directions']}</td><td>{row.get('sensitivity_db', float('nan')):.2f}</td>"
+                f"<td>{row['qe_percent']:.1f}</td><td>{row['pe_deg']:.1f}</td>{gains}</tr>")
 
     # ranked as the evaluation's ranking: the own set first, then by the quadrant errors another set costs
     ranked = sorted(localisation["sets"].items(), key=lambda item: (item[0] != "own", item[1].get("gain_qe_pp", 0.0)))
@@ -178,8 +194,11 @@ and {remesh.get('right_pinna_edge_mm', {}).get('median', float('nan')):.2f} mm (
 <p>The listener's own set is the template; S = {localisation['sensitivity_db']:.2f} dB gives
 {localisation['calibration_qe_percent']:g} % quadrant errors heard through itself. Each other set stands for a
 non-individual HRTF heard with that template; the gain is its error minus the own set's.</p>
-<table><tr><th>set</th><th>what it is</th><th>directions</th><th>QE (%)</th><th>PE (°)</th><th>ΔQE (pp)</th>
-<th>ΔPE (°)</th></tr>{rows}</table>
+<table><tr><th>set</th><th>what it is</th><th>directions</th><th>S (dB)</th><th>QE (%)</th><th>PE (°)</th>
+<th>ΔQE (pp)</th><th>ΔPE (°)</th></tr>{rows}</table>
+<p>S is calibrated anew on the directions of each comparison (8 % QE of the own set there): the quadrant error
+depends on how densely the grid samples the sagittal planes. The own set's row gives S on
+{localisation['sets']['own']['directions']} directions.</p>
 </body></html>
 """
     write_text_atomic(out_html, page)

@@ -186,6 +186,7 @@ rule listener_report:
         "benchmarks/timings/listener/report/{listener}.tsv"
     params:
         others=lambda wc: RUN.listener_comparison_sets(wc.listener),
+        calibration_grid=(config.get("listener") or {}).get("dataset_grid") or None,
         personal_detail=RUN.listener_personal_detail,
     threads: 1
     resources:

@@ -66,6 +66,7 @@ def test_a_listener_gets_a_both_ear_hrir_set_on_the_full_grid(tmp_path, sonicom)
     config["listener"]["comparison_sets"].append({"name": "axd1", "kind": "listener",
                                                   "file": str(sonicom.parent / "hrtf" / "measured_axd_example1.sofa")})
     config["listener"]["personal_detail"] = True
+    config["listener"]["dataset_grid"] = str(sonicom / "P039" / "hrir_mesh2hrtf_48k.sofa")  # SONICOM's 793 too
     config["stitch"]["bands"] = config["demo"]["bands"]
     (work / "config" / "listener_ci.yaml").write_text(yaml.safe_dump(config))
     done = _run(["--cores", "2", "--configfile", "config/listener_ci.yaml"], work)
@@ -94,7 +95,8 @@ def test_a_listener_gets_a_both_ear_hrir_set_on_the_full_grid(tmp_path, sonicom)
         assert np.abs(centre[[0, 2]]).max() < 3.0 and 60.0 < sign * centre[1] < 75.0
     hrirs = sofar.read_sofa(work / "results/listeners/cgtub/hrtf/personal/HRIR.sofa", verify=False)
     assert hrirs.GLOBAL_SOFAConventions == "SimpleFreeFieldHRIR"
-    assert hrirs.Data_IR.shape[:2] == (17 * 36, 2)  # 17 sagittal planes, 36 polar angles each; two ears
+    # 17 sagittal planes of 36 polar angles each, and the SONICOM directions they lack (listener.dataset_grid)
+    assert hrirs.Data_IR.shape[1] == 2 and 17 * 36 + 700 < hrirs.Data_IR.shape[0] <= 17 * 36 + 793
     positions, energy = hrirs.SourcePosition, (hrirs.Data_IR ** 2).sum(axis=-1)
     left = (positions[:, 0] > 60) & (positions[:, 0] < 120) & (np.abs(positions[:, 1]) < 30)
     right = (positions[:, 0] > 240) & (positions[:, 0] < 300) & (np.abs(positions[:, 1]) < 30)
@@ -103,6 +105,8 @@ def test_a_listener_gets_a_both_ear_hrir_set_on_the_full_grid(tmp_path, sonicom)
     localisation = json.loads((work / "results/listeners/cgtub/localisation.json").read_text())
     assert set(localisation["sets"]) == {"own", "P039", "P067", "axd1"}
     assert localisation["sets"]["axd1"]["kind"] == "listener" and localisation["sets"]["P039"]["kind"] == "other person"
+    # S calibrated on the dataset's 793 directions, and every comparison with a SONICOM set keeps all of them
+    assert localisation["sets"]["own"]["directions"] == 793 and localisation["sets"]["P039"]["directions"] == 793
     assert all(np.isfinite(row["qe_percent"]) for row in localisation["sets"].values())
     page = (work / "results/listeners/cgtub/report.html").read_text()
     assert "What personalising buys" in page and "hrtf_planes.png" in page and "detail/left/aligned_pinna.blend" in page

@@ -133,3 +133,22 @@ def test_grids_refuse_bad_points():
         sagittal_grid(lateral_angles_deg=(95.0,))
     with pytest.raises(Mesh2HrtfIoError, match="plain folder name"):
         EvaluationGrid("my grid", np.eye(3), np.array([[0, 1, 2]]))
+
+
+def test_a_full_grid_with_a_datasets_directions_holds_every_one_of_them_once(sonicom):
+    """A listener's full grid plus SONICOM's 793 directions (config listener.dataset_grid): every dataset direction
+    is on the grid (at its own 1.5 m), none twice, the full grid's own points first and unchanged."""
+    from mesh2hrtf_io.grids import full_grid, grid_from_sofa, with_directions_of
+
+    full = full_grid(10.0)
+    dataset = grid_from_sofa(sonicom / "P039" / "hrir_mesh2hrtf_48k.sofa", name="Dataset")
+    merged = with_directions_of(full, dataset)
+    assert np.array_equal(merged.points_m[:len(full.points_m)], full.points_m)
+    unit = merged.points_m / np.linalg.norm(merged.points_m, axis=1, keepdims=True)
+    wanted = dataset.points_m / np.linalg.norm(dataset.points_m, axis=1, keepdims=True)
+    nearest = np.max(unit @ wanted.T, axis=0)
+    assert len(dataset.points_m) == 793 and np.all(nearest > np.cos(np.radians(0.1)))
+    assert len(np.unique(np.round(unit, 9), axis=0)) == len(unit)
+    added = merged.points_m[len(full.points_m):]
+    assert np.allclose(np.linalg.norm(added, axis=1), 1.5, atol=1e-6)
+    assert with_directions_of(merged, dataset) is merged  # nothing left to add

@@ -177,6 +177,10 @@ def test_a_listener_is_solved_as_its_own_subject_on_the_full_grid(in_root, tmp_p
     assert run.head_mesh_of("listeners/anna", "personal") == "results/listeners/anna/remesh/head.ply"
     assert run.export_settings("listeners/anna")["grid"] == "full"
     assert run.grid_inputs("listeners/anna") == {}
+    # listener.dataset_grid: the dataset's directions join the listener's full grid
+    with_dataset = RunPlan(_config(listeners=[{"name": "anna", "head": str(scan)}],
+                                   listener={"dataset_grid": str(other), "comparison_sets": []}))
+    assert with_dataset.grid_inputs("listeners/anna") == {"grid_sofa": str(other)}
     assert run.listener_comparisons("anna") == {"ben": "results/listeners/ben/hrtf/personal/HRTF.sofa",
                                                 "P039": str(other), "ku100": str(ku100)}
     # a measured set keeps its kind and rate for the report's table

@@ -29,7 +29,8 @@ for side, pinna_path, target_path in zip(("left", "right"), inputs.pinnae, input
                      Path(out.html).parent / f"coverage_{side}.png", f"{name}, {side} ear: what the scan saw")
 write_text_atomic(out.coverage, json.dumps({"seen_mm": SEEN_MM, "ears": coverage,
                                             "advice": coverage_advice(coverage)}, indent=1) + "\n")
-localisation = listener_localisation(snakemake.input.hrtf, snakemake.params.others)  # noqa: F821
+localisation = listener_localisation(snakemake.input.hrtf, snakemake.params.others,  # noqa: F821
+                                     snakemake.params.calibration_grid)  # noqa: F821
 write_text_atomic(snakemake.output.localisation, json.dumps(localisation, indent=1) + "\n")  # noqa: F821
 plot_planes(snakemake.input.hrtf, snakemake.output.planes, f"{name}: personal HRTF")  # noqa: F821
 write_listener_report(name, Path(snakemake.input.frame).parent.parent, localisation,  # noqa: F821

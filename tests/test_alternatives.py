@@ -240,3 +240,29 @@ def test_a_headline_cell_gives_one_condition_with_its_share_and_a_group_as_a_ran
     assert "| **+0.50 pp, +0.20° (98 %)** |" in table
     assert "| +12.0 to +18.0 pp, +7.0 to +9.5° |" in table
     assert "not built (the stitch refuses it)" in table and "| `scan_hard`: the defective scan made watertight (screened Poisson) | – |" in table
+
+
+def test_the_defective_scan_made_watertight_is_cut_under_a_pinnas_rim_and_stitched(tmp_path, sonicom):
+    """scan_hard's path on P143's committed hard scan: screened Poisson, cut under the rim of the packaged template
+    placed on the scan by the global pose (the workflow cuts under ppm_hard's fit), one open boundary, and the
+    stitch closes the head with it."""
+    import bpy  # noqa: F401  (before pymeshlab)
+
+    from ppm.align import AlignSettings, align, prepare_target
+    from ppm.mesh_io import write_mesh
+    from ppm.model import PinnaModel
+    from stitching.loops import boundary_loops
+    from stitching.pipeline import scan_pinna_files, stitch_files
+
+    scan = COMMITTED / "hard_scans" / "P143_hard_scan.ply"
+    model = PinnaModel.from_template()
+    placed = align(model, prepare_target(scan, side="left"), AlignSettings(stages=()))
+    guide = tmp_path / "guide.ply"
+    write_mesh(guide, placed.vertices_mm, model.faces)
+    report = scan_pinna_files(scan, guide, tmp_path / "pinna.ply", tmp_path / "pinna.json", tmp_path / "surface.ply")
+    pinna = trimesh.load(tmp_path / "pinna.ply", process=False, force="mesh")
+    assert len(boundary_loops(pinna)) == 1 and report["outliers_removed"] > 0
+    assert 2000.0 < report["area_mm2"] < 8000.0  # a pinna and its skin ring, not the crop's balloon
+    stitched = stitch_files(sonicom / "P143" / "head_graded_left.ply", tmp_path / "pinna.ply", tmp_path / "head.ply",
+                            tmp_path / "head.json")
+    assert stitched["closed"]

@@ -242,7 +242,7 @@ def test_a_headline_cell_gives_one_condition_with_its_share_and_a_group_as_a_ran
     assert "not built (the stitch refuses it)" in table and "| `scan_hard`: the defective scan made watertight (screened Poisson) | – |" in table
 
 
-def test_the_defective_scan_made_watertight_is_cut_under_a_pinnas_rim_and_stitched(tmp_path, sonicom):
+def test_the_defective_scan_made_watertight_is_cut_under_a_pinnas_rim_and_stitched(tmp_path, sonicom, model):
     """scan_hard's path on P143's committed hard scan: screened Poisson, cut under the rim of the packaged template
     placed on the scan by the global pose (the workflow cuts under ppm_hard's fit), one open boundary, and the
     stitch closes the head with it."""
@@ -250,13 +250,14 @@ def test_the_defective_scan_made_watertight_is_cut_under_a_pinnas_rim_and_stitch
 
     from ppm.align import AlignSettings, align, prepare_target
     from ppm.mesh_io import write_mesh
-    from ppm.model import PinnaModel
+    from ppm.parameters import PinnaParameters
     from stitching.loops import boundary_loops
     from stitching.pipeline import scan_pinna_files, stitch_files
 
     scan = COMMITTED / "hard_scans" / "P143_hard_scan.ply"
-    model = PinnaModel.from_template()
+    # the session's rigged template (a second one would reset Blender under the first)
     placed = align(model, prepare_target(scan, side="left"), AlignSettings(stages=()))
+    model.set_parameters(PinnaParameters.default())
     guide = tmp_path / "guide.ply"
     write_mesh(guide, placed.vertices_mm, model.faces)
     report = scan_pinna_files(scan, guide, tmp_path / "pinna.ply", tmp_path / "pinna.json", tmp_path / "surface.ply")

@@ -267,3 +267,20 @@ def test_the_defective_scan_made_watertight_is_cut_under_a_pinnas_rim_and_stitch
     stitched = stitch_files(sonicom / "P143" / "head_graded_left.ply", tmp_path / "pinna.ply", tmp_path / "head.ply",
                             tmp_path / "head.json")
     assert stitched["closed"]
+
+
+def test_sofa_numbers_equal_to_floating_point_noise_are_the_same_content(tmp_path):
+    """Source positions 6e-14 deg apart (a grid turned into spherical positions on another machine) are the same
+    content; a change of 1e-9 in the data is not."""
+    import sofar
+
+    from reporting.evaluation_files import same_sofa_content
+
+    source = COMMITTED / "sofa" / "P143_ppm_left_HRTF.sofa"
+    sofa = sofar.read_sofa(str(source), verify=False, verbose=False)
+    sofa.SourcePosition = np.asarray(sofa.SourcePosition) + 5.7e-14
+    sofar.write_sofa(str(tmp_path / "a.sofa"), sofa, compression=4)
+    assert same_sofa_content(tmp_path / "a.sofa", source)
+    sofa.Data_Real = np.asarray(sofa.Data_Real) * (1 + 1e-9)
+    sofar.write_sofa(str(tmp_path / "b.sofa"), sofa, compression=4)
+    assert not same_sofa_content(tmp_path / "b.sofa", source)

@@ -70,7 +70,7 @@ def test_the_paper_plan_reads_the_committed_step_store(in_root, sonicom):
     assert run.control_pinna("P067", "scan_hard") == "results/P067/controls/scan_hard/pinna.ply"
     assert list(run.not_solved("P067")) == ["nricp_hard"] and "2 holes" in run.not_solved("P067")["nricp_hard"]
     assert run.not_solved("P143") == {}
-    assert run.evaluation_conditions("P039") == ["original", "ppm", "own_pinna", "ppm_detail"]
+    assert run.evaluation_conditions("P039") == ["original", "ppm", "own_pinna", "default_ppm", "ppm_detail"]
     # default_ppm is banded, except P143's, solved on its full mesh before (hrtf.frequency_bands.full_mesh_heads)
     assert run.banded("default_ppm", "P067") and not run.banded("default_ppm", "P143")
     assert run.step_project("P143", "default_ppm", 1) == "results/P143/hrtf/default_ppm/project"
@@ -85,7 +85,7 @@ def test_the_paper_plan_reads_the_committed_step_store(in_root, sonicom):
     steps = run.steps_of("P067", "ppm")
     assert len(steps) == 40 and steps[0] == "results/P067/hrtf/ppm/steps/source_1/steps_1-1.json"
     # the dataset's own reference HRIRs are not a solved variant
-    assert run.solved_variants("P039") == ["original", "ppm", "own_pinna", "ppm_detail"]
+    assert run.solved_variants("P039") == ["original", "ppm", "own_pinna", "default_ppm", "ppm_detail"]
     assert run.reference_sofa("P039") == "../shared/data/sonicom/P039/hrir_mesh2hrtf_48k.sofa"
     assert len(run.reference_frequencies("P039")) == 40
     inputs = run.evaluation_report_inputs()

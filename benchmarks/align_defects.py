@@ -52,8 +52,8 @@ from ppm.align.nricp import nricp_fit as fit_nricp
 from ppm.align.target import Target, surface_without_outliers
 from ppm.model import PinnaModel
 from ppm.template.register import NRICP_STEPS
+from reporting.stitched_region import region_distances, seen_by
 from stitching.reconstruction import poisson_surface
-from stitching.replace_pinna import under_pinna
 
 ROOT = Path(__file__).resolve().parents[1]
 #: NRICP stiffness schedules tried (stiff to supple): ending after 1 ... 4 of NRICP_STEPS' stages, and a
@@ -72,30 +72,6 @@ def truth_distances(truth: Target, vertices_mm: np.ndarray, faces: np.ndarray) -
             "truth_to_fit_median_mm": float(np.median(forward)), "truth_to_fit_p95_mm": float(np.percentile(forward, 95)),
             "fit_to_truth_median_mm": float(np.median(backward[counts])),
             "fit_to_truth_p95_mm": float(np.percentile(backward[counts], 95))}
-
-
-#: A truth point counts as seen by a defective scan when one of the scan's points lies this close (mm): the hard level
-#: resamples to 2 mm (studies/committed.SEEN_MM, the same figure).
-SEEN_MM = 2.0
-
-
-def region_distances(truth: Target, seen: np.ndarray, guide: trimesh.Trimesh, vertices_mm: np.ndarray,
-                     faces: np.ndarray) -> dict[str, float]:
-    """Over the region the stitch replaces under ``guide`` (the PPM fitted to the scan): truth -> surface and
-    surface -> truth median and p95 (mm), and truth -> surface over the truth points the scan saw (``seen``) and
-    those it never saw."""
-    inside = under_pinna(truth.points_mm, guide)
-    surface = trimesh.Trimesh(vertices_mm, faces, process=False)
-    forward = trimesh.proximity.closest_point(surface, truth.points_mm[inside])[1]
-    backward, counts = reverse_distances_mm(truth, vertices_mm, boundary_margin_mm=1.0)
-    counts &= under_pinna(np.asarray(vertices_mm), guide)
-    seen_inside = seen[inside]
-    out = {}
-    for name, values in (("truth_to_fit", forward), ("fit_to_truth", backward[counts]),
-                         ("seen", forward[seen_inside]), ("unseen", forward[~seen_inside])):
-        out[f"{name}_median_mm"] = float(np.median(values)) if len(values) else float("nan")
-        out[f"{name}_p95_mm"] = float(np.percentile(values, 95)) if len(values) else float("nan")
-    return out
 
 
 def at_or_below(first: dict, second: dict) -> bool:
@@ -176,7 +152,7 @@ def main() -> None:
             detail = truth_distances(truth, result.vertices_mm + layer.displacement_mm, model.faces)
             detail_seconds.append(time.perf_counter() - start)
             guide = trimesh.Trimesh(result.vertices_mm, model.faces, process=False)
-            seen = np.asarray(trimesh.proximity.ProximityQuery(scan.mesh).vertex(truth.points_mm)[0]) < SEEN_MM
+            seen = seen_by(scan.mesh.vertices, truth.points_mm)
             regions = {"ppm": region_distances(truth, seen, guide, result.vertices_mm, model.faces),
                        "ppm_detail": region_distances(truth, seen, guide, result.vertices_mm + layer.displacement_mm,
                                                       model.faces)}

@@ -17,9 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from .pinna_regions import OUTSIDE, label_points, landmark_regions
-
-#: A face is seen when a scan point lies this close to its centre (mm).
-SEEN_MM = 2.0
+from .stitched_region import SEEN_MM  # a face is seen when a scan point lies this close to its centre (mm)
 #: A region with less of its area seen than this gets advice to rescan it.
 ADVICE_SHARE = 0.7
 

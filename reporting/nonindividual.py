@@ -90,7 +90,7 @@ def judged(candidate, template, sensitivity_db: float) -> dict:
     same_grid = (candidate.irs.shape[0] == template.irs.shape[0]
                  and np.allclose(candidate.azimuth_deg, template.azimuth_deg)
                  and np.allclose(candidate.elevation_deg, template.elevation_deg))
-    if same_grid:
+    if same_grid:  # direction by direction, as on one grid (the nearest search moved a SONICOM-grid set by 0.16 pp)
         target, kept = candidate, template
     else:
         target, kept = on_common_directions(candidate, template, DIRECTION_TOLERANCE_DEG)
@@ -108,25 +108,17 @@ def nonindividual_rows(subjects: list[str], original_hrtfs: dict[str, str | os.P
     """One row per subject and non-individual set (``other_<subject>`` for another subject's ``original``, the
     measured set's name otherwise) with ``subject``, ``condition``, ``kind``, ``directions``, QE/PE and ΔQE/ΔPE by
     the paper's protocol (see the module's docstring), the subject's S in ``sensitivity_db``."""
-    import sofar  # noqa: PLC0415
-
-    from amt_bridge.hrtf_set import read_hrtf_set, read_one_ear_completed, resampled_at  # noqa: PLC0415
-    from amt_bridge.model import LocalisationModel  # noqa: PLC0415
-    from reporting.paper_protocol import LATERAL_ANGLES_DEG, REFERENCE_QE_PERCENT  # noqa: PLC0415
+    from reporting.paper_protocol import protocol_calibration, protocol_template  # noqa: PLC0415
 
     solved = [s for s in subjects if s in original_hrtfs]
-    frequencies = {s: np.asarray(sofar.read_sofa(str(original_hrtfs[s]), verify=False, verbose=False).N)
-                   for s in solved}
-    own_sets = {}
+    frequencies, own_sets = {}, {}
     for subject in solved:
-        dataset = resampled_at(read_hrtf_set(dataset_hrirs[subject]), frequencies[subject])
-        own_sets[subject] = read_one_ear_completed(original_hrtfs[subject], "left", dataset)
+        frequencies[subject], _, own_sets[subject] = protocol_template(original_hrtfs[subject], dataset_hrirs[subject])
     measured_sets = {m.name: (m, read_measured_set(m)) for m in measured}
     rows = []
     for subject in solved:
         template = own_sets[subject]
-        sensitivity = LocalisationModel(template, template, list(LATERAL_ANGLES_DEG)).calibrate(
-            REFERENCE_QE_PERCENT, closest=True)
+        _, sensitivity = protocol_calibration(template)
         candidates = [(f"other_{other}", "dataset subject", own_sets[other]) for other in solved
                       if other != subject and np.allclose(frequencies[other], frequencies[subject])]
         candidates += [(name, m.kind, rebuilt_like(hrirs, frequencies[subject], template))

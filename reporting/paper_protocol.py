@@ -16,6 +16,27 @@ REFERENCE_QE_PERCENT = 8.0
 PAPER_COLUMNS = ("qe_paper_percent", "pe_paper_deg", "delta_qe_paper_pp", "delta_pe_paper_deg")
 
 
+def protocol_template(reference_hrtf: str | os.PathLike, dataset_hrir: str | os.PathLike):
+    """(frequencies (Hz), the dataset's set sampled at them and rebuilt, the template): ``reference_hrtf``'s left ear
+    (a one-ear SOFA) completed with the right ear of ``dataset_hrir``, as the paper's protocol hears every set."""
+    import sofar  # noqa: PLC0415
+
+    from amt_bridge.hrtf_set import read_hrtf_set, read_one_ear_completed, resampled_at  # noqa: PLC0415
+
+    frequencies = np.asarray(sofar.read_sofa(str(reference_hrtf), verify=False, verbose=False).N)
+    dataset = resampled_at(read_hrtf_set(dataset_hrir), frequencies)
+    return frequencies, dataset, read_one_ear_completed(reference_hrtf, "left", dataset)
+
+
+def protocol_calibration(template):
+    """(the model of ``template`` heard through itself, S in dB at which it gives :data:`REFERENCE_QE_PERCENT`; the
+    closest in the bracket where none does)."""
+    from amt_bridge.model import LocalisationModel  # noqa: PLC0415
+
+    model = LocalisationModel(template, template, list(LATERAL_ANGLES_DEG))
+    return model, model.calibrate(REFERENCE_QE_PERCENT, closest=True)
+
+
 def paper_protocol(reference_hrtf: str | os.PathLike, conditions: dict[str, str | os.PathLike],
                    dataset_hrir: str | os.PathLike) -> dict:
     """QE/PE of each condition (left-ear HRTF SOFA files, by name) with ``reference_hrtf`` (a left-ear SOFA)
@@ -23,16 +44,11 @@ def paper_protocol(reference_hrtf: str | os.PathLike, conditions: dict[str, str 
     at the solved frequencies and rebuilt). Returns {"sensitivity_db", "reference": prediction, name: prediction},
     each prediction with ``qe_percent``, ``pe_deg`` and the rest of
     :meth:`amt_bridge.performance.Prediction.as_dict`."""
-    import sofar  # noqa: PLC0415
-
-    from amt_bridge.hrtf_set import read_hrtf_set, read_one_ear_completed, resampled_at  # noqa: PLC0415
+    from amt_bridge.hrtf_set import read_one_ear_completed  # noqa: PLC0415
     from amt_bridge.model import LocalisationModel  # noqa: PLC0415
 
-    frequencies = np.asarray(sofar.read_sofa(str(reference_hrtf), verify=False, verbose=False).N)
-    dataset = resampled_at(read_hrtf_set(dataset_hrir), frequencies)
-    template = read_one_ear_completed(reference_hrtf, "left", dataset)
-    model = LocalisationModel(template, template, list(LATERAL_ANGLES_DEG))
-    sensitivity = model.calibrate(REFERENCE_QE_PERCENT, closest=True)
+    _, dataset, template = protocol_template(reference_hrtf, dataset_hrir)
+    model, sensitivity = protocol_calibration(template)
     result = {"sensitivity_db": sensitivity, "reference": model.predict(sensitivity).as_dict()}
     for name, path in conditions.items():
         condition = dataset if name == "dataset" else read_one_ear_completed(path, "left", dataset)

@@ -5,6 +5,9 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+# a clean crop point counts as seen by a defective scan when a scan point lies this close (mm); defined once
+from reporting.stitched_region import SEEN_MM
+
 ROOT = Path(__file__).resolve().parents[1]
 SONICOM = ROOT.parent / "shared" / "data" / "sonicom"
 
@@ -23,11 +26,6 @@ def committed_subject(evaluation: Path, subject: str,
     if not any(name in files for name in needs):
         raise SystemExit(f"{evaluation}/sofa: no solve of {subject} as condition {' or '.join(needs)}")
     return settings, SONICOM / subject / settings["reference_sofa"], files
-
-
-#: A clean crop point counts as seen by a defective scan when one of the scan's points lies this close (mm): the hard
-#: level resamples to 2 mm and adds 0.5 mm of noise (ppm/data/scan_defects.yaml).
-SEEN_MM = 2.0
 
 
 def crop_seen_by_hard_scan(evaluation: Path, subject: str):

@@ -40,13 +40,12 @@ def main() -> None:
     import bpy  # noqa: F401  (before pymeshlab)
     import numpy as np
     import trimesh
-    from scipy.spatial import cKDTree
 
-    from committed import SEEN_MM, SONICOM, require_workflow_files
+    from committed import SONICOM, require_workflow_files
     from ppm.align import prepare_target
     from ppm.align.detail import DetailSettings, personal_detail
-    from ppm.align.report import reverse_distances_mm
     from ppm.align.target import Target
+    from reporting.stitched_region import region_distances, seen_by
     from stitching.reconstruction import poisson_surface, trimmed_near
     from stitching.replace_pinna import under_pinna
 
@@ -60,19 +59,15 @@ def main() -> None:
     fit = trimesh.load(fit_path, process=False, force="mesh")
     vertices, faces = np.asarray(fit.vertices), np.asarray(fit.faces)
     inside = under_pinna(truth.points_mm, fit)
-    seen = (cKDTree(scan.vertices).query(truth.points_mm)[0] < SEEN_MM)[inside]
+    seen = seen_by(scan.vertices, truth.points_mm)
     reconstruction = poisson_surface(scan, source=str(scan_path))
     figures: dict[str, dict] = {}
+    parts = {"truth_to_surface": "truth_to_fit", "surface_to_truth": "fit_to_truth", "seen": "seen", "unseen": "unseen"}
 
     def measure(name: str, surface_vertices, surface_faces) -> None:
-        surface = trimesh.Trimesh(surface_vertices, surface_faces, process=False)
-        forward = trimesh.proximity.closest_point(surface, truth.points_mm[inside])[1]
-        backward, counts = reverse_distances_mm(truth, surface_vertices, boundary_margin_mm=1.0)
-        backward = backward[counts & under_pinna(np.asarray(surface_vertices), fit)]
-        parts = {"truth_to_surface": forward, "surface_to_truth": backward, "seen": forward[seen],
-                 "unseen": forward[~seen]}
-        figures[name] = {key: [round(float(np.median(v)), 3), round(float(np.percentile(v, 95)), 3)]
-                         for key, v in parts.items()}
+        distances = region_distances(truth, seen, fit, surface_vertices, surface_faces)
+        figures[name] = {key: [round(distances[f"{part}_median_mm"], 3), round(distances[f"{part}_p95_mm"], 3)]
+                         for key, part in parts.items()}
         print(f"{args.subject} {name:44s} " + "  ".join(f"{key} {m:.3f}/{p:.3f}"
                                                        for key, (m, p) in figures[name].items()), flush=True)
 
@@ -80,7 +75,8 @@ def main() -> None:
         mesh = trimesh.Trimesh(surface.vertices, surface.faces, process=False)
         return Target(np.asarray(mesh.vertices), np.asarray(mesh.vertex_normals), mesh, "screened Poisson")
 
-    print(f"{args.subject}: {int(inside.sum())} truth points in the stitched region, {int(seen.sum())} seen by the scan")
+    print(f"{args.subject}: {int(inside.sum())} truth points in the stitched region, {int(seen[inside].sum())} seen by "
+          "the scan")
     measure("PPM (ppm_hard)", vertices, faces)
     measure("screened Poisson, trimmed 4 mm", reconstruction.surface.vertices, reconstruction.surface.faces)
     measure("layer towards the scan (packaged)", vertices + personal_detail(vertices, faces, hard).displacement_mm,

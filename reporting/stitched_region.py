@@ -1,0 +1,42 @@
+"""How near a surface lies to the true ear over the region the stitch replaces (millimetres, project frame): both
+directions, and the truth -> surface direction split into the parts a defective scan saw and those it never saw. Used
+by ``benchmarks/align_defects.py`` and ``studies/layer_evidence.py`` to judge the PPM, its layer and a reconstruction
+of the same scan alike."""
+from __future__ import annotations
+
+import numpy as np
+import trimesh
+
+from ppm.align.report import reverse_distances_mm
+from ppm.align.target import Target
+from stitching.replace_pinna import under_pinna
+
+#: A truth point counts as seen by a scan when one of the scan's points lies this close (mm): the hard level resamples
+#: to 2 mm (ppm/data/scan_defects.yaml); the same figure as reporting.coverage.SEEN_MM and studies/committed.SEEN_MM.
+SEEN_MM = 2.0
+
+
+def seen_by(scan_points_mm: np.ndarray, points_mm: np.ndarray) -> np.ndarray:
+    """Per point of ``points_mm``, whether a scan point lies within :data:`SEEN_MM`."""
+    from scipy.spatial import cKDTree  # noqa: PLC0415
+
+    return cKDTree(np.asarray(scan_points_mm, np.float64)).query(np.asarray(points_mm, np.float64))[0] < SEEN_MM
+
+
+def region_distances(truth: Target, seen: np.ndarray, guide: trimesh.Trimesh, vertices_mm: np.ndarray,
+                     faces: np.ndarray) -> dict[str, float]:
+    """Over the region the stitch replaces under ``guide`` (the PPM fitted to the scan): truth -> surface and
+    surface -> truth median and p95 (mm), and truth -> surface over the truth points the scan saw (``seen``, per truth
+    point) and those it never saw."""
+    inside = under_pinna(truth.points_mm, guide)
+    surface = trimesh.Trimesh(vertices_mm, faces, process=False)
+    forward = trimesh.proximity.closest_point(surface, truth.points_mm[inside])[1]
+    backward, counts = reverse_distances_mm(truth, vertices_mm, boundary_margin_mm=1.0)
+    counts &= under_pinna(np.asarray(vertices_mm), guide)
+    seen_inside = seen[inside]
+    out = {}
+    for name, values in (("truth_to_fit", forward), ("fit_to_truth", backward[counts]),
+                         ("seen", forward[seen_inside]), ("unseen", forward[~seen_inside])):
+        out[f"{name}_median_mm"] = float(np.median(values)) if len(values) else float("nan")
+        out[f"{name}_p95_mm"] = float(np.percentile(values, 95)) if len(values) else float("nan")
+    return out

@@ -13,7 +13,6 @@ The report ranks them, as the evaluation's ranking does (:mod:`reporting.ranking
 """
 from __future__ import annotations
 
-import dataclasses
 import html
 import json
 import os
@@ -45,16 +44,8 @@ def listener_localisation(own_hrtf: str | os.PathLike, others: dict[str, str | o
 
     frequencies = np.asarray(sofar.read_sofa(str(own_hrtf), verify=False, verbose=False).N)
     own = read_hrtf_set(own_hrtf)
-    calibrated_on = own
-    if calibration_grid:
-        from mesh2hrtf_io.grids import grid_from_sofa  # noqa: PLC0415
-
-        points = grid_from_sofa(calibration_grid).points_m
-        azimuth = np.degrees(np.arctan2(points[:, 1], points[:, 0]))
-        elevation = np.degrees(np.arcsin(points[:, 2] / np.linalg.norm(points, axis=1)))
-        directions = dataclasses.replace(own, irs=np.zeros((len(points), 2, own.irs.shape[2])) + own.irs[:1],
-                                         azimuth_deg=azimuth, elevation_deg=elevation, source=str(calibration_grid))
-        calibrated_on = on_common_directions(own, directions, 0.1)[0]
+    # the own set on the dataset's directions (it was solved on them too), else on all of its own
+    calibrated_on = on_common_directions(own, read_hrtf_set(calibration_grid), 0.1)[0] if calibration_grid else own
     model = LocalisationModel(calibrated_on, calibrated_on, list(LATERAL_ANGLES_DEG))
     sensitivity = model.calibrate(QE_CALIBRATION_PERCENT, closest=True)
     reference = model.predict(sensitivity).as_dict()

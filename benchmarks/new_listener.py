@@ -21,10 +21,10 @@ sets share, and each ear alone (the other ear from the dataset's set): <side>_ea
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -35,6 +35,13 @@ sys.path.insert(0, str(ROOT))
 SONICOM = ROOT.parent / "shared" / "data" / "sonicom"
 KEPT = ROOT / "benchmarks" / "results" / "new_listener"
 WORK = ROOT / "results" / "new_listener"
+#: The steps of this benchmark's solves: both heads on the listener's full grid with the dataset's 793 directions
+#: added (listener.dataset_grid). The first run's steps (personal head without the layer, full grid alone) stay in
+#: KEPT / "steps" for the record.
+STORE = KEPT / "steps_dataset_grid"
+DATASET_SOFA = "hrir_mesh2hrtf_48k.sofa"
+#: The evaluation's hard-scan seed (config evaluation.hard_scan.seed): the left ear's hard scan is the evaluation's.
+HARD_SEED = 19
 
 
 def posed_head(subject: str, seed: int) -> tuple[Path, np.ndarray]:
@@ -57,86 +64,206 @@ def posed_head(subject: str, seed: int) -> tuple[Path, np.ndarray]:
     return path, pose
 
 
+def hard_ear_scans(subject: str, seed: int, pose: np.ndarray) -> dict[str, Path]:
+    """Both ears of the subject scanned at the ``hard`` level of ppm/data/scan_defects.yaml (occlusion holes, 2 mm
+    sampling, 0.5 mm noise, outliers, spikes, a partial crop), each its own fixed draw: the left ear is the
+    evaluation's own hard scan (seed HARD_SEED mixed with the subject's name, evaluation/sonicom/hard_scans/), the
+    right ear the same recipe on the mirrored right crop with the seed mixed with "<subject>_right", mirrored back.
+    Posed and written in centimetres as the head is; returns side -> file."""
+    import trimesh  # noqa: PLC0415
+
+    from ppm.align.defects import hard_scan_of  # noqa: PLC0415
+
+    paths = {}
+    for side in ("left", "right"):
+        path = WORK / f"{subject}_hard_{side}_ear_cm.ply"
+        paths[side] = path
+        if path.is_file():
+            continue
+        crop = SONICOM / subject / f"pinna_{side}_crop.ply"
+        if side == "left":
+            scan, _ = hard_scan_of(crop, subject, "hard", HARD_SEED)
+            vertices = np.asarray(scan.vertices)
+        else:
+            mirror = np.array([1.0, -1.0, 1.0])
+            clean = trimesh.load(crop, process=False, force="mesh")
+            with tempfile.TemporaryDirectory() as folder:
+                mirrored = Path(folder) / "right_as_left.ply"
+                trimesh.Trimesh(np.asarray(clean.vertices) * mirror, clean.faces[:, ::-1], process=False).export(mirrored)
+                scan, _ = hard_scan_of(mirrored, f"{subject}_right", "hard", HARD_SEED)
+            vertices = np.asarray(scan.vertices) * mirror
+            scan = trimesh.Trimesh(vertices, scan.faces[:, ::-1], process=False)
+        posed = (vertices @ pose[:3, :3].T + pose[:3, 3]) / 10.0
+        WORK.mkdir(parents=True, exist_ok=True)
+        trimesh.Trimesh(posed, scan.faces, process=False).export(path)
+    return paths
+
+
 def snakemake(args: list[str]) -> None:
     command = [sys.executable, "-m", "snakemake", *args]
     print("$", " ".join(command), flush=True)
     subprocess.run(command, cwd=ROOT, check=True)
 
 
-def run(subject: str, seed: int, cores: int) -> None:
-    """The template without the subject, then the listener's whole run (NumCalc)."""
-    head, _ = posed_head(subject, seed)
+def run(subject: str, seed: int, cores: int, targets: list[str] | None = None, hard: bool = False) -> None:
+    """The template without the subject, then the listener's whole run (NumCalc), or only ``targets``; with
+    ``hard`` the listener whose ear scans are the hard ones (<subject>_hard)."""
+    config = write_config(subject, seed, hard)
+    snakemake(["--cores", str(cores), "--configfile", str(config.relative_to(ROOT)), "--rerun-triggers", "mtime",
+               *(["--nolock"] if hard else []), *(["--", *targets] if targets else [])])
+
+
+def write_config(subject: str, seed: int, hard: bool = False) -> Path:
+    """The run's config (results/new_listener/config.yaml; config_hard.yaml for the listener <subject>_hard, whose
+    ears are fitted to their hard scans, given as the listener's separate ear scans, and whose reference is
+    <subject>_new's head as scanned), the template without the subject built first."""
+    head, pose = posed_head(subject, seed)
     template = f"results/templates/without_{subject}/template_left.ply"
     if not (ROOT / template).is_file():
         snakemake(["--cores", "1", "--config", f"data_root={SONICOM}", "--", template])
-    config = WORK / "config.yaml"
+    listener = {"name": f"{subject}_new", "head": str(head.relative_to(ROOT))}
+    if hard:
+        ears = hard_ear_scans(subject, seed, pose)
+        listener.update(name=f"{subject}_hard", **{f"{side}_ear": str(path.relative_to(ROOT))
+                                                   for side, path in ears.items()})
+    config = WORK / ("config_hard.yaml" if hard else "config.yaml")
     config.write_text(json.dumps({
-        "listeners": [{"name": f"{subject}_new", "head": str(head.relative_to(ROOT))}],
-        "listener": {"template": str(Path(template).parent), "comparison_sets": []},
+        "listeners": [listener],
+        "listener": {"template": str(Path(template).parent), "comparison_sets": [], "personal_detail": True,
+                     "scanned_head": not hard, "dataset_grid": str(SONICOM / subject / DATASET_SOFA)},
         "hrtf": {"enabled": True, "solver": "numcalc", "frequencies_hz": "evaluation",
-                 "step_store": str(KEPT.relative_to(ROOT) / "steps")},
+                 "step_store": str(STORE.relative_to(ROOT))},
     }, indent=1))
-    snakemake(["--cores", str(cores), "--configfile", str(config.relative_to(ROOT)), "--rerun-triggers", "mtime"])
+    return config
+
+
+def store_cpu(folder: Path) -> tuple[float, set[str]]:
+    """NumCalc CPU hours of the steps kept under ``folder`` and the sources (ears) they belong to."""
+    from mesh2hrtf_io.step_store import solve_cpu_seconds  # noqa: PLC0415
+
+    cpu, ears = 0.0, set()
+    for stored in sorted(folder.rglob("step_*.npz")):
+        with np.load(stored) as kept:
+            cpu += solve_cpu_seconds(json.loads(str(kept["status_json"])))
+        ears.add(stored.parent.name)
+    return cpu / 3600.0, ears
+
+
+def dataset_line(personal_hrir: Path, dataset_sofa: Path) -> dict:
+    """The second line: the dataset's HRIRs (rebuilt at the solved frequencies) are the template, S at 8 % QE on
+    them, the personal set heard with them on the directions both have; each ear alone (the other from the
+    dataset). It includes this pipeline's solve against the dataset's, which the paper's protocol takes out."""
+    import sofar  # noqa: PLC0415
+
+    from amt_bridge.hrtf_set import read_hrtf_set, resampled_at  # noqa: PLC0415
+    from reporting.paper_protocol import both_ears_protocol  # noqa: PLC0415
+
+    frequencies = np.asarray(sofar.read_sofa(str(personal_hrir.with_name("HRTF.sofa")), verify=False).N)
+    dataset = resampled_at(read_hrtf_set(dataset_sofa), frequencies)
+    return both_ears_protocol(dataset, read_hrtf_set(personal_hrir), tolerance_deg=2.0)
+
+
+def paper_line(personal_hrir: Path, scanned_hrir: Path, dataset_sofa: Path) -> dict:
+    """The paper's protocol: the listener's head as scanned (both ears unchanged, solved as the personal head) is
+    reference and template, both sets on the dataset's directions (reporting.paper_protocol.both_ears_protocol)."""
+    from amt_bridge.hrtf_set import read_hrtf_set  # noqa: PLC0415
+    from reporting.paper_protocol import both_ears_protocol  # noqa: PLC0415
+
+    return both_ears_protocol(read_hrtf_set(scanned_hrir), read_hrtf_set(personal_hrir), read_hrtf_set(dataset_sofa))
+
+
+def ears_gap(judged: dict) -> dict:
+    """Why both ears cost more than the two ears alone added: per sagittal plane (deg lateral, + = left), the
+    QE (pp) with the left ear alone personal, the right alone, both, and both minus the sum of the two alone."""
+    rows = {}
+    for index, plane in enumerate(judged["reference"]["planes"]):
+        deltas = {key: judged[key]["planes"][index]["qe_percent"] - plane["qe_percent"]
+                  for key in ("left", "right", "both")}
+        rows[f"{plane['lateral_deg']:+.0f}"] = {**{k: round(v, 3) for k, v in deltas.items()},
+                                                "excess": round(deltas["both"] - deltas["left"] - deltas["right"], 3)}
+    return rows
+
+
+def fit_figures(base: Path, pose: np.ndarray) -> dict:
+    """Frame, fits and remesh of the run so far (what exists of them)."""
+    from listener.units import UNIT_MM  # noqa: PLC0415
+
+    summary: dict = {}
+    if (base / "prepared" / "frame.json").is_file():
+        frame = json.loads((base / "prepared" / "frame.json").read_text())
+        composite = np.asarray(frame["matrix"]) @ np.diag([1.0 / UNIT_MM[frame["unit"]]] * 3 + [1.0]) @ pose
+        axis = composite[1, :3] / np.linalg.norm(composite[1, :3])
+        summary.update(frame_axis_error_deg=round(float(np.degrees(np.arccos(np.clip(axis[1], -1, 1)))), 3),
+                       frame_origin_error_mm=round(float(np.linalg.norm(composite[:3, 3])), 2))
+    for side in ("left", "right"):
+        fit = base / "align" / side / "summary.json"
+        if fit.is_file():
+            summary[f"{side}_fit_median_mm"] = json.loads(fit.read_text())["distance_target_to_ppm"]["median_mm"]
+    for name, key in (("remesh", "head_triangles"), ("scanned", "scanned_head_triangles")):
+        if (base / name / "validation.json").is_file():
+            validation = json.loads((base / name / "validation.json").read_text())
+            summary[key] = validation["n_triangles"]
+            if name == "remesh":
+                summary.update(left_pinna_edge_median_mm=round(validation["pinna_edge_mm"]["median"], 3),
+                               right_pinna_edge_median_mm=round(validation["right_pinna_edge_mm"]["median"], 3))
+    if (base / "coverage.json").is_file():
+        ears = json.loads((base / "coverage.json").read_text())["ears"]
+        for side in ("left", "right"):
+            summary[f"coverage_{side}"] = round(next(r["seen_share"] for r in ears[side]
+                                                     if r["region"] == "whole pinna"), 4)
+    return summary
 
 
 def report(subject: str, seed: int) -> dict:
     """The figures of a (finished or partial) run."""
-    from listener.units import UNIT_MM  # noqa: PLC0415
-    from mesh2hrtf_io.step_store import solve_cpu_seconds  # noqa: PLC0415
-
     _, pose = posed_head(subject, seed)
     base = ROOT / "results" / "listeners" / f"{subject}_new"
-    frame = json.loads((base / "prepared" / "frame.json").read_text())
-    matrix = np.asarray(frame["matrix"])
-    composite = matrix @ np.diag([1.0 / UNIT_MM[frame["unit"]]] * 3 + [1.0]) @ pose
-    axis = composite[1, :3] / np.linalg.norm(composite[1, :3])
-    summary = {"frame_axis_error_deg": round(float(np.degrees(np.arccos(np.clip(axis[1], -1, 1)))), 3),
-               "frame_origin_error_mm": round(float(np.linalg.norm(composite[:3, 3])), 2)}
-    for side in ("left", "right"):
-        fit = json.loads((base / "align" / side / "summary.json").read_text())
-        summary[f"{side}_fit_median_mm"] = fit["distance_target_to_ppm"]["median_mm"]
-    validation = json.loads((base / "remesh" / "validation.json").read_text())
-    summary.update(head_triangles=validation["n_triangles"],
-                   left_pinna_edge_median_mm=round(validation["pinna_edge_mm"]["median"], 3),
-                   right_pinna_edge_median_mm=round(validation["right_pinna_edge_mm"]["median"], 3))
-    cpu, ears = 0.0, set()
-    for stored in sorted((KEPT / "steps").rglob("step_*.npz")):
-        with np.load(stored) as kept:
-            cpu += solve_cpu_seconds(json.loads(str(kept["status_json"])))
-        ears.add(stored.parent.name)
-    hrir = base / "hrtf" / "personal" / "HRIR.sofa"
-    summary.update(ears_solved=len(ears) if hrir.is_file() else 0, cpu_hours=round(cpu / 3600.0, 3),
-                   delta_qe_pp=None, delta_pe_deg=None)
-    if hrir.is_file():
-        import sofar  # noqa: PLC0415
-
-        from amt_bridge.hrtf_set import on_common_directions, read_hrtf_set, resampled_at  # noqa: PLC0415
-        from amt_bridge.model import LocalisationModel  # noqa: PLC0415
-
-        # the evaluation's protocol: the dataset's HRIRs, rebuilt at the solved frequencies, are the template
-        # with S at 8 % QE on themselves; the personal set is heard with them, both on the directions they share
-        frequencies = np.asarray(sofar.read_sofa(str(hrir.with_name("HRTF.sofa")), verify=False).N)
-        dataset = resampled_at(read_hrtf_set(SONICOM / subject / "hrir_mesh2hrtf_48k.sofa"), frequencies)
-        personal, reference = on_common_directions(read_hrtf_set(hrir), dataset)
-        own = LocalisationModel(reference, reference, [-20.0, 0.0, 20.0])
-        sensitivity = own.calibrate(8.0, closest=True)
-        base_prediction = own.predict(sensitivity)
-        prediction = LocalisationModel(personal, reference, [-20.0, 0.0, 20.0]).predict(sensitivity)
-        summary.update(delta_qe_pp=round(prediction.qe - base_prediction.qe, 3),
-                       delta_pe_deg=round(prediction.pe - base_prediction.pe, 3),
-                       directions_compared=int(reference.irs.shape[0]))
-        # ear by ear: the personal set's one ear, the other from the dataset's set
-        for index, side in enumerate(("left", "right")):
-            irs = reference.irs.copy()
-            irs[:, index] = personal.irs[:, index]
-            one = LocalisationModel(dataclasses.replace(reference, irs=irs), reference, [-20.0, 0.0, 20.0])
-            alone = one.predict(sensitivity)
-            summary[f"{side}_ear_only_delta_qe_pp"] = round(alone.qe - base_prediction.qe, 3)
-            summary[f"{side}_ear_only_delta_pe_deg"] = round(alone.pe - base_prediction.pe, 3)
-    print(f"{subject} as a new listener: frame axis {summary['frame_axis_error_deg']:.2f} deg off the dataset's y, "
-          f"origin {summary['frame_origin_error_mm']:.1f} mm off its origin; fits {summary['left_fit_median_mm']:.2f} / "
-          f"{summary['right_fit_median_mm']:.2f} mm (median, left / right); NumCalc {summary['cpu_hours']:.2f} CPU h "
-          f"so far; ears solved {summary['ears_solved']}", flush=True)
+    summary: dict = {key: None for key in ("paper_delta_qe_pp", "paper_delta_pe_deg", "paper_left_delta_qe_pp",
+                                           "paper_right_delta_qe_pp", "hard_paper_delta_qe_pp",
+                                           "hard_paper_delta_pe_deg", "coverage_left", "coverage_right",
+                                           "directions_compared", "delta_qe_pp", "delta_pe_deg")}
+    summary.update(fit_figures(base, pose))
+    personal_cpu, ears = store_cpu(STORE / "listeners" / f"{subject}_new" / "personal")
+    reference_cpu, _ = store_cpu(STORE / "listeners" / f"{subject}_new" / "scanned")
+    personal, scanned = (base / "hrtf" / variant / "HRIR.sofa" for variant in ("personal", "scanned"))
+    dataset = SONICOM / subject / DATASET_SOFA
+    summary.update(ears_solved=len(ears) if personal.is_file() else 0, cpu_hours=round(personal_cpu, 3),
+                   reference_cpu_hours=round(reference_cpu, 3), personal_detail=True)
+    if personal.is_file():
+        second = dataset_line(personal, dataset)
+        summary.update(delta_qe_pp=round(second["both"]["delta_qe_pp"], 3),
+                       delta_pe_deg=round(second["both"]["delta_pe_deg"], 3),
+                       dataset_directions_compared=second["directions"])
+        for side in ("left", "right"):
+            summary[f"{side}_ear_only_delta_qe_pp"] = round(second[side]["delta_qe_pp"], 3)
+            summary[f"{side}_ear_only_delta_pe_deg"] = round(second[side]["delta_pe_deg"], 3)
+    if scanned.is_file():
+        # this pipeline's solve of the head as scanned against the dataset's own HRIRs: what the second line
+        # carries besides the ears
+        solve = dataset_line(scanned, dataset)
+        summary.update(scanned_vs_dataset_delta_qe_pp=round(solve["both"]["delta_qe_pp"], 3),
+                       scanned_vs_dataset_delta_pe_deg=round(solve["both"]["delta_pe_deg"], 3))
+    if personal.is_file() and scanned.is_file():
+        paper = paper_line(personal, scanned, dataset)
+        summary.update(paper_delta_qe_pp=round(paper["both"]["delta_qe_pp"], 3),
+                       paper_delta_pe_deg=round(paper["both"]["delta_pe_deg"], 3),
+                       paper_left_delta_qe_pp=round(paper["left"]["delta_qe_pp"], 3),
+                       paper_right_delta_qe_pp=round(paper["right"]["delta_qe_pp"], 3),
+                       paper_left_delta_pe_deg=round(paper["left"]["delta_pe_deg"], 3),
+                       paper_right_delta_pe_deg=round(paper["right"]["delta_pe_deg"], 3),
+                       paper_sensitivity_db=round(paper["sensitivity_db"], 4),
+                       paper_reference_qe_percent=round(paper["reference"]["qe_percent"], 3),
+                       directions_compared=paper["directions"], paper_ears_gap_by_plane=ears_gap(paper))
+    print(f"{subject} as a new listener: {json.dumps({k: v for k, v in summary.items() if not isinstance(v, dict)})}",
+          flush=True)
+    if summary.get("paper_delta_qe_pp") is not None:
+        print(f"paper's protocol (template: the head as scanned, {summary['directions_compared']} dataset directions, "
+              f"S {summary['paper_sensitivity_db']} dB): both ears {summary['paper_delta_qe_pp']:+.2f} pp / "
+              f"{summary['paper_delta_pe_deg']:+.2f} deg; left ear alone {summary['paper_left_delta_qe_pp']:+.2f} pp, "
+              f"right alone {summary['paper_right_delta_qe_pp']:+.2f} pp", flush=True)
+        for plane, row in summary["paper_ears_gap_by_plane"].items():
+            print(f"  plane {plane} deg: left alone {row['left']:+.2f}, right alone {row['right']:+.2f}, both "
+                  f"{row['both']:+.2f} pp (both minus the sum {row['excess']:+.2f})", flush=True)
     KEPT.mkdir(parents=True, exist_ok=True)
     (KEPT / f"{subject}.json").write_text(json.dumps(summary, indent=1) + "\n")
     return summary
@@ -148,9 +275,15 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=7)
     parser.add_argument("--cores", type=int, default=2)
     parser.add_argument("--report-only", action="store_true", help="judge what has been run so far")
+    parser.add_argument("--hard", action="store_true",
+                        help="run the listener <subject>_hard (both ears fitted to hard scans) instead")
+    parser.add_argument("--until", default=None, help="run only up to this output of the listener (e.g. "
+                        "remesh/validation.json: fits, stitch and remesh without the solve)")
     args = parser.parse_args()
     if not args.report_only:
-        run(args.subject, args.seed, args.cores)
+        name = f"{args.subject}_{'hard' if args.hard else 'new'}"
+        run(args.subject, args.seed, args.cores, [f"results/listeners/{name}/{args.until}"] if args.until else None,
+            args.hard)
     print(json.dumps(report(args.subject, args.seed)))
 
 

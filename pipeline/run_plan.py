@@ -16,9 +16,10 @@ from pathlib import Path
 import yaml
 
 #: Every HRTF variant of a subject: the reference listener, the unchanged head and the solved conditions; and a new
-#: listener's one head, "personal" (its subject is "listeners/<name>").
+#: listener's personal head, "personal", and in a validation run its head as scanned, "scanned" (its subject is
+#: "listeners/<name>").
 HRTF_VARIANTS = ("reference", "original", "ppm", "own_pinna", "default_ppm", "ppm_detail", "ppm_hard", "ppm_detail_hard",
-                 "nricp_hard", "scan_hard", "personal")
+                 "nricp_hard", "scan_hard", "personal", "scanned")
 #: The control conditions (the own pinna put back; the template placed by the global pose only).
 CONTROLS = ("own_pinna", "default_ppm", "ppm_detail", "ppm_hard", "ppm_detail_hard", "nricp_hard", "scan_hard")
 
@@ -201,6 +202,8 @@ class RunPlan:
             return str(kept)
         if variant in ("ppm", "personal"):
             return f"results/{subject}/remesh/head.ply"
+        if variant == "scanned":
+            return f"results/{subject}/scanned/head.ply"
         return f"results/{subject}/controls/{variant}/head.ply"
 
     def given_reference_sofa(self, subject: str) -> Path:
@@ -366,9 +369,9 @@ class RunPlan:
     def solved_variants(self, subject: str) -> list[str]:
         """The heads whose HRTFs are solved for a subject: the reference head when the dataset has no reference
         HRIRs (config localisation.reference_sofa), and every evaluation condition (the PPM head first); for a new
-        listener its personal head."""
+        listener its personal head, and its head as scanned with config listener.scanned_head."""
         if self.is_listener(subject):
-            return ["personal"]
+            return ["personal"] + (["scanned"] if self.listener_scanned_head else [])
         given = self.given_reference_sofa(subject).is_file()
         return ([] if given else ["reference"]) + self.evaluation_conditions(subject)
 
@@ -544,7 +547,13 @@ class RunPlan:
     def listener_personal_detail(self) -> bool:
         """Whether a listener's fits get their personal-detail layer before the stitch (config
         ``listener.personal_detail``)."""
-        return bool((self.config.get("listener") or {}).get("personal_detail"))
+        return bool((self.config.get("listener") or {}).get("personal_detail", True))
+
+    @property
+    def listener_scanned_head(self) -> bool:
+        """Whether a listener's head as scanned is solved too (config ``listener.scanned_head``): the paper
+        protocol's reference in a validation run."""
+        return bool((self.config.get("listener") or {}).get("scanned_head"))
 
     def listener_pinna(self, listener: str, side: str) -> str:
         """The pinna stitched onto a listener's head on ``side`` (left-ear frame, mm): the PPM fit, with its
@@ -608,6 +617,8 @@ class RunPlan:
         pinnae, its both-ear HRIRs and its report."""
         parts = ["prepared/frame.json", "align/left/summary.json", "align/right/summary.json",
                  "remesh/validation.json", "hrtf/personal/HRIR.sofa", "report.html"]
+        if self.listener_scanned_head:
+            parts.append("hrtf/scanned/HRIR.sofa")
         return [f"results/listeners/{name}/{part}" for name in self.listeners for part in parts]
 
     def final_output(self) -> list[str]:

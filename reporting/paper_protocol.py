@@ -82,3 +82,59 @@ def with_paper_columns(rows: list[dict], hrtfs: dict[tuple[str, str], str | os.P
                        delta_qe_paper_pp=prediction["qe_percent"] - base["qe_percent"],
                        delta_pe_paper_deg=prediction["pe_deg"] - base["pe_deg"])
     return out
+
+
+def _plane_qe_pe(prediction) -> list[dict]:
+    """Per sagittal plane: lateral angle (deg), QE (%), PE (deg)."""
+    return [{"lateral_deg": plane.lateral_deg, "qe_percent": float(plane.performance.qe_percent),
+             "pe_deg": float(plane.performance.pe_deg)} for plane in prediction.planes]
+
+
+def both_ears_protocol(reference, personal, directions=None, tolerance_deg: float = 0.5) -> dict:
+    """The paper's protocol for a listener whose two ears are both solved: ``reference`` (an
+    :class:`amt_bridge.hrtf_set.HrirSet`, the listener's head as scanned, solved exactly as ``personal``) is the
+    template, S is calibrated so that it gives :data:`REFERENCE_QE_PERCENT` heard through itself, and ``personal`` is
+    heard with it in the three sagittal planes of :data:`LATERAL_ANGLES_DEG` (-20 deg: the right hemisphere, 0: the
+    median plane, +20: the left). As in AMT's baumgartner2014, each ear's similarity index is weighted by its binaural
+    weight, 1 / (1 + exp(-lateral / 13 deg)) for the left ear and its complement for the right, before the response
+    probabilities are formed; QE and PE are the planes' mean. Each ear alone: ``personal``'s one ear with the
+    reference's other. ``directions`` (an HrirSet, e.g. the dataset's) narrows both sets to its directions first (each
+    must be there within ``tolerance_deg``).
+
+    Returns {"sensitivity_db", "directions", "reference", "both", "left", "right"}, each prediction as
+    {"qe_percent", "pe_deg", "delta_qe_pp", "delta_pe_deg", "planes": [{lateral_deg, qe_percent, pe_deg}, ...]}."""
+    import dataclasses  # noqa: PLC0415
+
+    from amt_bridge.errors import AmtBridgeError  # noqa: PLC0415
+    from amt_bridge.hrtf_set import on_common_directions  # noqa: PLC0415
+    from amt_bridge.model import LocalisationModel  # noqa: PLC0415
+
+    if directions is not None:
+        narrowed = []
+        for hrirs in (reference, personal):
+            on, _ = on_common_directions(hrirs, directions, tolerance_deg)
+            if on.irs.shape[0] != directions.irs.shape[0]:
+                raise AmtBridgeError(f"{hrirs.source} has only {on.irs.shape[0]} of the {directions.irs.shape[0]} "
+                                     f"directions of {directions.source} within {tolerance_deg} deg; solve it on a grid "
+                                     "that contains them (config listener.dataset_grid)")
+            narrowed.append(on)
+        reference, personal = narrowed
+    else:
+        personal, reference = on_common_directions(personal, reference, tolerance_deg)
+    model, sensitivity = protocol_calibration(reference)
+    base = model.predict(sensitivity)
+
+    def judged(target) -> dict:
+        prediction = LocalisationModel(target, reference, list(LATERAL_ANGLES_DEG)).predict(sensitivity)
+        return {"qe_percent": prediction.qe, "pe_deg": prediction.pe, "delta_qe_pp": prediction.qe - base.qe,
+                "delta_pe_deg": prediction.pe - base.pe, "planes": _plane_qe_pe(prediction)}
+
+    result = {"sensitivity_db": float(sensitivity), "directions": int(reference.irs.shape[0]),
+              "reference": {"qe_percent": base.qe, "pe_deg": base.pe, "delta_qe_pp": 0.0, "delta_pe_deg": 0.0,
+                            "planes": _plane_qe_pe(base)},
+              "both": judged(personal)}
+    for index, side in enumerate(("left", "right")):
+        irs = reference.irs.copy()
+        irs[:, index] = personal.irs[:, index]
+        result[side] = judged(dataclasses.replace(reference, irs=irs, source=f"{personal.source}, {side} ear only"))
+    return result

@@ -60,7 +60,7 @@ def _latest_head(prints: dict[int, tuple[str, str]]) -> str | None:
     return max(prints.values(), key=lambda item: (item[1], count[item[0]]))[0]
 
 
-BUILT_HEADS = ("ppm", "own_pinna", "default_ppm", "ppm_detail", "ppm_hard", "ppm_detail_hard", "nricp_hard", "scan_hard", "personal")  # heads the pipeline makes; kept in the store beside their steps
+BUILT_HEADS = ("ppm", "own_pinna", "default_ppm", "ppm_detail", "ppm_hard", "ppm_detail_hard", "nricp_hard", "scan_hard", "personal", "scanned")  # heads the pipeline makes; kept in the store beside their steps
 
 
 def plan_rows(store_root: str | os.PathLike | None, heads: list[tuple[str, str]], n_steps: int,

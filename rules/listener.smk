@@ -1,7 +1,8 @@
 # A new listener (config listeners): the head scan brought into the project frame and closed, both pinnae cut out
 # and fitted by the PPM (the right one mirrored: the PPM is a left ear), both fits stitched into the head and the
 # head remeshed at both pinnae. Results in results/listeners/<name>/. Its HRTFs are solved by the rules of
-# rules/hrtf.smk with the subject "listeners/<name>" and the variant "personal" (grid "full", both ears).
+# rules/hrtf.smk with the subject "listeners/<name>" and the variant "personal" (grid "full", both ears); in a
+# validation run (listener.scanned_head) its head as scanned too, the variant "scanned".
 
 # a listener's subject "listeners/<name>" also matches the dataset rules' results/{subject}/stitch, /remesh and report
 ruleorder: listener_stitch > stitch
@@ -161,6 +162,31 @@ rule listener_remesh:
         runtime=measured_runtime("remesh"),
     script:
         "../workflow/scripts/remesh_head.py"
+
+
+# config listener.scanned_head (a validation run): the head as scanned, both ears unchanged, remeshed at both ears
+# exactly as the personal head (refined where the fitted pinnae lie, not over the whole crop); solved as the HRTF
+# variant "scanned", the paper protocol's reference and template
+rule listener_scanned_head:
+    input:
+        head="results/listeners/{listener}/prepared/head.ply",
+        left=lambda wc: RUN.listener_pinna(wc.listener, "left"),
+        right=lambda wc: RUN.listener_pinna(wc.listener, "right"),
+    output:
+        mesh="results/listeners/{listener}/scanned/head.ply",
+        report="results/listeners/{listener}/scanned/validation.json",
+    log:
+        "logs/listener/scanned_head/{listener}.log",
+    benchmark:
+        "benchmarks/timings/listener/scanned_head/{listener}.tsv"
+    params:
+        bands=lambda wc: config["stitch"]["bands"],
+    threads: 1
+    resources:
+        mem_mb=measured_mem_mb("remesh"),
+        runtime=measured_runtime("remesh"),
+    script:
+        "../workflow/scripts/listener_scanned_head.py"
 
 
 rule listener_report:

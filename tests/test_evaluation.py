@@ -2,6 +2,7 @@
 kept in the repository (evaluation/sonicom), which must parse and agree with each other."""
 from __future__ import annotations
 
+import dataclasses
 import json
 import re
 
@@ -458,3 +459,31 @@ def test_fine_distance_scale_shows_what_the_papers_scale_paints_red(tmp_path, so
         coloured = np.ptp(rgb, axis=1) > 0.08  # not the white/grey background or the text
         shares[name] = float(np.mean(rgb[coloured, 1] > rgb[coloured, 0] + 0.08))
     assert shares["paper"] < 0.02 and shares["fine"] > 0.3, shares
+
+
+def test_both_ears_protocol_takes_the_scanned_head_as_template_and_names_what_each_ear_costs(sonicom):
+    """A listener with both ears solved: its own set heard through itself sits at 8 % QE and changes nothing;
+    another person's set (P039's dataset HRIRs heard with P143's) costs QE and PE with both ears, and each ear alone
+    costs less than both; narrowed to directions a set lacks, the protocol refuses with the fix."""
+    from amt_bridge.errors import AmtBridgeError
+    from amt_bridge.hrtf_set import read_hrtf_set
+    from reporting.paper_protocol import both_ears_protocol
+
+    own = read_hrtf_set(sonicom / "P143" / "hrir_mesh2hrtf_48k.sofa")
+    other = read_hrtf_set(sonicom / "P039" / "hrir_mesh2hrtf_48k.sofa")
+    same = both_ears_protocol(own, own, own)
+    assert same["directions"] == 793
+    assert same["reference"]["qe_percent"] == pytest.approx(8.0, abs=0.05)
+    assert same["both"]["delta_qe_pp"] == pytest.approx(0.0, abs=1e-9)
+    assert [plane["lateral_deg"] for plane in same["both"]["planes"]] == [-20.0, 0.0, 20.0]
+    result = both_ears_protocol(own, other, own)
+    assert result["both"]["delta_qe_pp"] > 5.0 and result["both"]["delta_pe_deg"] > 2.0
+    for side in ("left", "right"):
+        assert 0.0 < result[side]["delta_qe_pp"] < result["both"]["delta_qe_pp"]
+    # the left ear weighs most in the left hemisphere's plane (+20 deg), the right ear in the right one's
+    left, right = (result[side]["planes"] for side in ("left", "right"))
+    assert left[2]["qe_percent"] - left[0]["qe_percent"] > right[2]["qe_percent"] - right[0]["qe_percent"]
+    fewer = dataclasses.replace(other, irs=other.irs[::2], azimuth_deg=other.azimuth_deg[::2],
+                                elevation_deg=other.elevation_deg[::2])
+    with pytest.raises(AmtBridgeError, match="listener.dataset_grid"):
+        both_ears_protocol(own, fewer, own)

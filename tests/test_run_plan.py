@@ -187,12 +187,21 @@ def test_a_listener_is_solved_as_its_own_subject_on_the_full_grid(in_root, tmp_p
     assert run.listener_comparison_sets("anna")["ku100"] == {"file": str(ku100), "kind": "dummy head",
                                                              "sampling_rate_hz": 48000}
     assert run.listener_template().endswith("template_left.ply")
-    assert run.listener_pinna("anna", "right") == "results/listeners/anna/align/right/aligned_pinna.ply"
-    assert not run.listener_personal_detail
-    detailed = RunPlan(_config(listeners=[{"name": "anna", "head": str(scan)}],
-                               listener={"personal_detail": True, "comparison_sets": []}))
-    assert detailed.listener_pinna("anna", "right") == "results/listeners/anna/detail/right/aligned_pinna.ply"
-    assert detailed.listener_personal_detail
+    # the personal-detail layer is on by default; listener.personal_detail: false stitches the fits as they are
+    assert run.listener_personal_detail
+    assert run.listener_pinna("anna", "right") == "results/listeners/anna/detail/right/aligned_pinna.ply"
+    bare = RunPlan(_config(listeners=[{"name": "anna", "head": str(scan)}],
+                           listener={"personal_detail": False, "comparison_sets": []}))
+    assert bare.listener_pinna("anna", "right") == "results/listeners/anna/align/right/aligned_pinna.ply"
+    assert not bare.listener_personal_detail
+    # listener.scanned_head (a validation run): the head as scanned, remeshed as the personal head, solved beside it
+    assert "results/listeners/anna/hrtf/scanned/HRIR.sofa" not in run.final_output()
+    validating = RunPlan(_config(listeners=[{"name": "anna", "head": str(scan)}],
+                                 listener={"scanned_head": True, "comparison_sets": []}))
+    assert validating.solved_variants("listeners/anna") == ["personal", "scanned"]
+    assert validating.head_mesh_of("listeners/anna", "scanned") == "results/listeners/anna/scanned/head.ply"
+    assert "results/listeners/anna/hrtf/scanned/HRIR.sofa" in validating.final_output()
+    assert validating.export_settings("listeners/anna")["grid"] == "full"
     with pytest.raises(RunConfigError, match="given twice"):
         RunPlan(_config(listeners=[{"name": "anna", "head": str(scan)}] * 2))
     with pytest.raises(RunConfigError, match="missing or empty"):

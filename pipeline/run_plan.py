@@ -615,7 +615,7 @@ class RunPlan:
     def listener_outputs(self) -> list[str]:
         """What a run with listeners makes for each: the frame found, both fits, the remeshed head with both PPM
         pinnae, its both-ear HRIRs and its report."""
-        parts = ["prepared/frame.json", "align/left/summary.json", "align/right/summary.json",
+        parts = ["prepared/frame.json", "align/left/summary.json", "align/right/summary.json", "coverage.json",
                  "remesh/validation.json", "hrtf/personal/HRIR.sofa", "report.html"]
         if self.listener_scanned_head:
             parts.append("hrtf/scanned/HRIR.sofa")

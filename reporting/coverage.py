@@ -74,3 +74,29 @@ def coverage_picture(vertices_mm: np.ndarray, faces: np.ndarray, scan_points_mm:
     scale = DistanceScale(0.0, 2.0 * SEEN_MM, "magma_r", f"distance to the scan, seen under {SEEN_MM:g} mm")
     return render_distance_map(vertices_mm, faces, scan_distance_per_vertex(vertices_mm, scan_points_mm), path,
                                title, scale=scale)
+
+
+def write_coverage(name: str, pinnae: dict[str, str | os.PathLike], scans: dict[str, str | os.PathLike],
+                   landmarks: str | os.PathLike, out_json: str | os.PathLike) -> dict:
+    """Each ear's coverage (side -> its fitted pinna file and its prepared scan file, left-ear frame, mm; the
+    template's ``landmarks`` file labels the regions) written atomically to ``out_json`` as {"seen_mm", "ears": {side:
+    :func:`pinna_coverage` rows}, "advice"}, with a picture per ear beside it (``coverage_<side>.png``)."""
+    import json  # noqa: PLC0415
+
+    import trimesh  # noqa: PLC0415
+
+    from core.atomic import write_text_atomic  # noqa: PLC0415
+
+    from .pinna_regions import landmark_positions_mm  # noqa: PLC0415
+
+    ears = {}
+    for side, pinna_path in pinnae.items():
+        pinna = trimesh.load(pinna_path, process=False, force="mesh")
+        scan = trimesh.load(scans[side], process=False, force="mesh")
+        ears[side] = pinna_coverage(pinna.vertices, pinna.faces, scan.vertices,
+                                    landmark_positions_mm(pinna_path, landmarks))
+        coverage_picture(pinna.vertices, pinna.faces, scan.vertices, Path(out_json).parent / f"coverage_{side}.png",
+                         f"{name}, {side} ear: what the scan saw")
+    result = {"seen_mm": SEEN_MM, "ears": ears, "advice": coverage_advice(ears)}
+    write_text_atomic(out_json, json.dumps(result, indent=1) + "\n")
+    return result

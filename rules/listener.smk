@@ -189,6 +189,29 @@ rule listener_scanned_head:
         "../workflow/scripts/listener_scanned_head.py"
 
 
+# what each ear's scan saw, per region of its fitted pinna, with advice: made before any solve, so that a listener
+# can rescan an ear before hours of NumCalc are spent on a head built from a blind scan
+rule listener_coverage:
+    input:
+        # the fitted (stitched) pinnae, their prepared scans, the template's landmarks
+        pinnae=lambda wc: [RUN.listener_pinna(wc.listener, side) for side in ("left", "right")],
+        targets=expand("results/listeners/{{listener}}/target/{side}/pinna_target.ply", side=("left", "right")),
+        landmarks=lambda wc: str(Path(RUN.listener_template()).parent / "landmarks.yaml"),
+    output:
+        coverage="results/listeners/{listener}/coverage.json",
+        pictures=expand("results/listeners/{{listener}}/coverage_{side}.png", side=("left", "right")),
+    log:
+        "logs/listener/coverage/{listener}.log",
+    benchmark:
+        "benchmarks/timings/listener/coverage/{listener}.tsv"
+    threads: 1
+    resources:
+        mem_mb=measured_mem_mb("localisation"),
+        runtime=measured_runtime("localisation"),
+    script:
+        "../workflow/scripts/listener_coverage.py"
+
+
 rule listener_report:
     input:
         frame="results/listeners/{listener}/prepared/frame.json",
@@ -197,13 +220,9 @@ rule listener_report:
         remesh="results/listeners/{listener}/remesh/validation.json",
         hrtf="results/listeners/{listener}/hrtf/personal/HRTF.sofa",
         others=lambda wc: list(RUN.listener_comparisons(wc.listener).values()),
-        # what each ear's scan saw: the fitted (stitched) pinnae, their prepared scans, the template's landmarks
-        pinnae=lambda wc: [RUN.listener_pinna(wc.listener, side) for side in ("left", "right")],
-        targets=expand("results/listeners/{{listener}}/target/{side}/pinna_target.ply", side=("left", "right")),
-        landmarks=lambda wc: str(Path(RUN.listener_template()).parent / "landmarks.yaml"),
+        coverage="results/listeners/{listener}/coverage.json",
     output:
         html="results/listeners/{listener}/report.html",
-        coverage="results/listeners/{listener}/coverage.json",
         planes="results/listeners/{listener}/hrtf_planes.png",
         localisation="results/listeners/{listener}/localisation.json",
     log:

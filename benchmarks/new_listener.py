@@ -184,6 +184,19 @@ def ears_gap(judged: dict) -> dict:
     return rows
 
 
+def other_person_gap(subject: str) -> dict:
+    """:func:`ears_gap` of another SONICOM subject's dataset set heard with ``subject``'s (both from the dataset, no
+    solve), and the QE/PE deltas of both ears and each alone."""
+    from amt_bridge.hrtf_set import read_hrtf_set  # noqa: PLC0415
+    from reporting.paper_protocol import both_ears_protocol  # noqa: PLC0415
+
+    other = next(p.name for p in sorted(SONICOM.iterdir()) if p.name != subject and (p / DATASET_SOFA).is_file())
+    own = read_hrtf_set(SONICOM / subject / DATASET_SOFA)
+    judged = both_ears_protocol(own, read_hrtf_set(SONICOM / other / DATASET_SOFA), own)
+    return {"other": other, **{key: round(judged[key]["delta_qe_pp"], 3) for key in ("both", "left", "right")},
+            "planes": ears_gap(judged)}
+
+
 def fit_figures(base: Path, pose: np.ndarray) -> dict:
     """Frame, fits and remesh of the run so far (what exists of them)."""
     from listener.units import UNIT_MM  # noqa: PLC0415
@@ -254,6 +267,28 @@ def report(subject: str, seed: int) -> dict:
                        paper_sensitivity_db=round(paper["sensitivity_db"], 4),
                        paper_reference_qe_percent=round(paper["reference"]["qe_percent"], 3),
                        directions_compared=paper["directions"], paper_ears_gap_by_plane=ears_gap(paper))
+    # the same split for another person's whole set (a dataset subject's HRIRs heard with this subject's): whether
+    # both ears together costing more than the two alone added is the model's, not the pipeline's
+    summary["other_person_ears_gap_by_plane"] = other_person_gap(subject)
+    hard_base = ROOT / "results" / "listeners" / f"{subject}_hard"
+    hard_cpu, _ = store_cpu(STORE / "listeners" / f"{subject}_hard" / "personal")
+    summary["hard_cpu_hours"] = round(hard_cpu, 3)
+    for side in ("left", "right"):
+        fit = hard_base / "align" / side / "summary.json"
+        if fit.is_file():
+            summary[f"hard_{side}_fit_median_mm"] = json.loads(fit.read_text())["distance_target_to_ppm"]["median_mm"]
+    if (hard_base / "coverage.json").is_file():
+        ears = json.loads((hard_base / "coverage.json").read_text())["ears"]
+        for side in ("left", "right"):
+            summary[f"hard_coverage_{side}"] = round(next(r["seen_share"] for r in ears[side]
+                                                          if r["region"] == "whole pinna"), 4)
+    hard = hard_base / "hrtf" / "personal" / "HRIR.sofa"
+    if hard.is_file() and scanned.is_file():
+        judged = paper_line(hard, scanned, dataset)
+        summary.update(hard_paper_delta_qe_pp=round(judged["both"]["delta_qe_pp"], 3),
+                       hard_paper_delta_pe_deg=round(judged["both"]["delta_pe_deg"], 3),
+                       hard_paper_left_delta_qe_pp=round(judged["left"]["delta_qe_pp"], 3),
+                       hard_paper_right_delta_qe_pp=round(judged["right"]["delta_qe_pp"], 3))
     print(f"{subject} as a new listener: {json.dumps({k: v for k, v in summary.items() if not isinstance(v, dict)})}",
           flush=True)
     if summary.get("paper_delta_qe_pp") is not None:

@@ -8,7 +8,8 @@ ppm/data/scan_defects.yaml). Each scan is fitted
   * by NRICP (trimesh's Amberg, the same template, rigid ICP first) onto the same prepared scan, with the
     stiffness schedule that is best for these scans: every schedule of SCHEDULES is tried at the hardest
     level and the one with the smallest truth distance (mean of median and p95 over subjects) is used;
-  * by the PPM plus its personal-detail layer (ppm.align.detail, packaged settings) on the same prepared scan;
+  * by the PPM plus its personal-detail layer (ppm.align.detail, packaged settings) drawn towards the whole scan
+    (as the workflow does; --segmented-evidence: towards the segmented pinna the fit saw, as before 2026-12-06);
   * by the scan itself made watertight as a careful user would (`poisson`: MeshLab's outlier selection and
     screened Poisson reconstruction through pymeshlab, trimmed 4 mm from the scan; stitching/reconstruction.py,
     settings in stitching/data/scan_reconstruction.yaml), the baseline the layer must beat (issue 56);
@@ -118,6 +119,8 @@ def main() -> None:
                         help="other kinds of scan to judge after the graded levels (smooth: a photogrammetry scan)")
     parser.add_argument("--levels", nargs="*", default=None, choices=levels(),
                         help="graded levels to judge (default: all; leave them out with --levels and only --kinds)")
+    parser.add_argument("--segmented-evidence", action="store_true",
+                        help="draw the layer towards the segmented pinna the fit saw, not the whole scan (the old way)")
     parser.add_argument("--fold-weight", type=float, default=AlignSettings.fold_weight,
                         help=f"the aligner's fold barrier weight (default {AlignSettings.fold_weight})")
     args = parser.parse_args()
@@ -155,7 +158,11 @@ def main() -> None:
                                                settings)
             ppm = truth_distances(truth, result.vertices_mm, model.faces)
             start = time.perf_counter()
-            layer = personal_detail(result.vertices_mm, model.faces, target)
+            # the layer's evidence: the whole scan (outliers left to the layer's own guards), as the workflow gives
+            # it, or with --segmented-evidence only the pinna cut out for the fit (the layer before 2026-12-06)
+            evidence = (target if args.segmented_evidence else
+                        prepare_target(work / f"{subject}_{level}.ply", segment=False))
+            layer = personal_detail(result.vertices_mm, model.faces, evidence)
             detail = truth_distances(truth, result.vertices_mm + layer.displacement_mm, model.faces)
             detail_seconds.append(time.perf_counter() - start)
             guide = trimesh.Trimesh(result.vertices_mm, model.faces, process=False)

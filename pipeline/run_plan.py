@@ -158,6 +158,14 @@ class RunPlan:
             return f"results/{subject}/controls/hard/target/pinna_target.ply"
         return f"results/{subject}/target/pinna_target.ply"
 
+    def detail_evidence(self, subject: str, detailed: str) -> str:
+        """What a personal-detail layer takes its evidence from: the whole scan the fit's target was cut from (the
+        clean crop for ppm_detail, the fixed defective scan for ppm_detail_hard), so that the lobule and the skin
+        ring the pinna segmentation leaves out count too."""
+        if detailed == "ppm_detail_hard":
+            return f"results/{subject}/controls/hard/scan.ply"
+        return str(self.data_root / subject / "pinna_left_crop.ply")
+
     @staticmethod
     def control_pinna(subject: str, control: str) -> str:
         """The pinna a control condition stitches onto the head (mm): the head's own pinna region (own_pinna),

@@ -82,6 +82,10 @@ def detail_target(wildcards):
     return RUN.detail_target(wildcards.subject, wildcards.detailed)
 
 
+def detail_evidence(wildcards):
+    return RUN.detail_evidence(wildcards.subject, wildcards.detailed)
+
+
 def control_pinna(wildcards):
     return RUN.control_pinna(wildcards.subject, wildcards.control)
 

@@ -50,6 +50,9 @@ rule place_default_ppm:
 rule personal_detail:
     input:
         target=detail_target,
+        # the layer's evidence: the whole scan (the clean crop or the fixed hard scan), not only the pinna the fit
+        # was cut to
+        evidence=detail_evidence,
         blend=lambda wc: f"results/{wc.subject}/{'controls/ppm_hard/' if wc.detailed == 'ppm_detail_hard' else ''}align/aligned_pinna.blend",
     output:
         aligned="results/{subject}/controls/{detailed}/align/aligned_pinna.ply",
@@ -62,6 +65,8 @@ rule personal_detail:
         "benchmarks/timings/controls/personal_detail/{subject}_{detailed}.tsv"
     wildcard_constraints:
         detailed="ppm_detail|ppm_detail_hard",
+    params:
+        side="left",
     threads: 1
     resources:
         mem_mb=measured_mem_mb("personal_detail"),

@@ -100,6 +100,8 @@ rule listener_align:
 rule listener_detail:
     input:
         target="results/listeners/{listener}/target/{side}/pinna_target.ply",
+        # the layer's evidence: the whole prepared scan of the ear, not only the pinna cut out for the fit
+        evidence=lambda wc: RUN.listener_target_scan(wc.listener, wc.side),
         blend="results/listeners/{listener}/align/{side}/aligned_pinna.blend",
     output:
         aligned="results/listeners/{listener}/detail/{side}/aligned_pinna.ply",
@@ -112,6 +114,7 @@ rule listener_detail:
         "benchmarks/timings/listener/detail/{listener}_{side}.tsv"
     params:
         title=lambda wc: f"{wc.listener} {wc.side} ear",
+        side=lambda wc: wc.side,
     threads: 1
     resources:
         mem_mb=measured_mem_mb("personal_detail"),
@@ -165,13 +168,13 @@ rule listener_remesh:
 
 
 # config listener.scanned_head (a validation run): the head as scanned, both ears unchanged, remeshed at both ears
-# exactly as the personal head (refined where the fitted pinnae lie, not over the whole crop); solved as the HRTF
+# exactly as the personal head (refined where the PPM fits lie, not over the whole crop); solved as the HRTF
 # variant "scanned", the paper protocol's reference and template
 rule listener_scanned_head:
     input:
         head="results/listeners/{listener}/prepared/head.ply",
-        left=lambda wc: RUN.listener_pinna(wc.listener, "left"),
-        right=lambda wc: RUN.listener_pinna(wc.listener, "right"),
+        left="results/listeners/{listener}/align/left/aligned_pinna.ply",
+        right="results/listeners/{listener}/align/right/aligned_pinna.ply",
     output:
         mesh="results/listeners/{listener}/scanned/head.ply",
         report="results/listeners/{listener}/scanned/validation.json",

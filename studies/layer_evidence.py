@@ -8,7 +8,8 @@ Reads the committed hard scan's workflow outputs (results/<subject>/controls/har
 results/<subject>/controls/ppm_hard/align/aligned_pinna.ply: the PPM fitted to it) and the clean crop (the truth).
 Prints, per surface, truth -> surface and surface -> truth median / p95 (mm) over the stitched region, and truth ->
 surface over the parts the scan saw (a scan point within 2 mm) and never saw. Candidate layers: the packaged layer
-towards the reconstruction trimmed to ``--trim-mm`` of the prepared scan (a denoised surface where the scan saw the
+towards the fit's segmented target (as before 2026-12-06) and towards the whole scan (the workflow's evidence now),
+the packaged layer towards the reconstruction trimmed to ``--trim-mm`` of the prepared scan (a denoised surface where the scan saw the
 ear), and variants of its settings (``ppm.align.detail.DetailSettings``). Last line: JSON of every surface's figures.
 """
 from __future__ import annotations
@@ -79,8 +80,15 @@ def main() -> None:
           "the scan")
     measure("PPM (ppm_hard)", vertices, faces)
     measure("screened Poisson, trimmed 4 mm", reconstruction.surface.vertices, reconstruction.surface.faces)
-    measure("layer towards the scan (packaged)", vertices + personal_detail(vertices, faces, hard).displacement_mm,
-            faces)
+    measure("layer towards the segmented scan (before)",
+            vertices + personal_detail(vertices, faces, hard).displacement_mm, faces)
+    # the workflow's evidence since 2026-12-06: the whole scan, not only the pinna the segmentation cut out for the
+    # fit (which left out the lobule and the skin ring: half of the hard scans' points)
+    whole = prepare_target(scan_path, side="left", segment=False)
+    print(f"{args.subject}: the fit's segmented target holds {len(hard.points_mm)} points, the whole scan "
+          f"{len(whole.points_mm)}")
+    measure("layer towards the whole scan (packaged)",
+            vertices + personal_detail(vertices, faces, whole).displacement_mm, faces)
     evidence = as_target(trimmed_near(reconstruction.closed, hard.points_mm, args.trim_mm))
     measure(f"layer towards Poisson ({args.trim_mm:g} mm)",
             vertices + personal_detail(vertices, faces, evidence).displacement_mm, faces)

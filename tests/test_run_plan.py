@@ -68,6 +68,10 @@ def test_the_paper_plan_reads_the_committed_step_store(in_root, sonicom):
                                                  "ppm_hard", "ppm_detail_hard", "scan_hard"]
     # the defective scan made watertight is cut under the rim of the PPM fitted to it
     assert run.control_pinna("P067", "scan_hard") == "results/P067/controls/scan_hard/pinna.ply"
+    # the personal-detail layer is judged on the fit's segmented target but drawn towards the whole scan
+    assert run.detail_target("P067", "ppm_detail_hard") == "results/P067/controls/hard/target/pinna_target.ply"
+    assert run.detail_evidence("P067", "ppm_detail_hard") == "results/P067/controls/hard/scan.ply"
+    assert run.detail_evidence("P067", "ppm_detail").endswith("sonicom/P067/pinna_left_crop.ply")
     assert list(run.not_solved("P067")) == ["nricp_hard"] and "2 holes" in run.not_solved("P067")["nricp_hard"]
     assert run.not_solved("P143") == {}
     assert run.evaluation_conditions("P039") == ["original", "ppm", "own_pinna", "default_ppm", "ppm_detail"]

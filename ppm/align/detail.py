@@ -333,10 +333,12 @@ def personal_detail(vertices_mm: np.ndarray, faces: np.ndarray, target: Target,
     return PersonalDetail(displacement_mm=displacement, trusted=trusted, halvings=halvings, stages=stages)
 
 
-def add_personal_detail(model, target: Target, settings: DetailSettings | None = None) -> tuple[PersonalDetail, dict]:
+def add_personal_detail(model, target: Target, settings: DetailSettings | None = None,
+                        judged_on: Target | None = None) -> tuple[PersonalDetail, dict]:
     """Add the personal-detail layer of ``model`` (a :class:`ppm.model.PinnaModel` posed by a fit) on ``target``
-    as its shape key :data:`DETAIL_KEY` at weight 1; returns the layer and a summary (the scan -> pinna distances
-    without and with it, mm; the layer's figures)."""
+    (its evidence: best the whole scan the fit's target was cut from) as its shape key :data:`DETAIL_KEY` at weight
+    1; returns the layer and a summary (the scan -> pinna distances without and with it, mm, over ``judged_on``, e.g.
+    the fit's segmented target, or ``target``; the layer's figures)."""
     from .report import distance_summary, one_sided_distances_mm  # noqa: PLC0415
 
     if model.detail_weight:
@@ -345,8 +347,9 @@ def add_personal_detail(model, target: Target, settings: DetailSettings | None =
     detail = personal_detail(posed, model.faces, target, settings)
     mismatch = model.set_personal_detail(detail.displacement_mm, 1.0)
     with_detail = model.evaluate()
-    summary = {"ppm": distance_summary(one_sided_distances_mm(target, posed, model.faces)),
-               "ppm_detail": distance_summary(one_sided_distances_mm(target, with_detail, model.faces)),
+    judged_on = judged_on or target
+    summary = {"ppm": distance_summary(one_sided_distances_mm(judged_on, posed, model.faces)),
+               "ppm_detail": distance_summary(one_sided_distances_mm(judged_on, with_detail, model.faces)),
                "layer": detail.summary(), "shape_key": DETAIL_KEY, "shape_key_mismatch_mm": round(mismatch, 6),
                "settings": dataclasses.asdict(settings or DetailSettings.packaged())}
     return detail, summary

@@ -1,6 +1,8 @@
 """Rules personal_detail and listener_detail: the personal-detail layer (ppm.align.detail) on a subject's (a
-listener's ear's) PPM fit, towards the trusted parts of its prepared scan: the posed PPM with the layer (PLY, mm), the .blend with the layer as the shape key
-Personal_detail (weight 1), a summary and a distance map."""
+listener's ear's) PPM fit, towards the trusted parts of its whole scan (``evidence``: the crop or ear scan the fit's
+target was cut from, so that the lobule and the skin ring the pinna segmentation drops count too): the posed PPM with
+the layer (PLY, mm), the .blend with the layer as the shape key Personal_detail (weight 1), a summary and a distance
+map of the fit's target (the segmented pinna) to the layered PPM."""
 import sys
 from pathlib import Path
 
@@ -23,8 +25,9 @@ from ppm.render import render_distance_map  # noqa: E402
 inputs, out = snakemake.input, snakemake.output  # noqa: F821
 model = PinnaModel.from_blend(inputs.blend)
 target = prepare_target(inputs.target, side="left", segment=False)  # prepared already
-detail, summary = add_personal_detail(model, target)
-summary.update(target=inputs.target, fit=inputs.blend)
+evidence = prepare_target(inputs.evidence, side=snakemake.params.side, segment=False)  # noqa: F821  (whole scan)
+detail, summary = add_personal_detail(model, evidence, judged_on=target)
+summary.update(target=inputs.target, evidence=inputs.evidence, fit=inputs.blend)
 model.export(out.aligned)
 model.save_blend(out.blend)
 distance = one_sided_distances_mm(target, model.evaluate(), model.faces)

@@ -33,6 +33,14 @@ VARIANTS = {
 }
 
 
+#: Settings tried with the whole scan as evidence.
+WHOLE_SCAN_VARIANTS = {
+    "reach 8 mm": {"reach_mm": 8.0, "max_displacement_mm": 10.0},
+    "normals 60 deg": {"normal_agreement_deg": 60.0},
+    "facing pairs": {"facing_pairs": True},
+}
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--subject", default="P143")
@@ -89,6 +97,9 @@ def main() -> None:
           f"{len(whole.points_mm)}")
     measure("layer towards the whole scan (packaged)",
             vertices + personal_detail(vertices, faces, whole).displacement_mm, faces)
+    for name, overrides in WHOLE_SCAN_VARIANTS.items():
+        layer = personal_detail(vertices, faces, whole, DetailSettings.packaged(**overrides))
+        measure(f"layer towards the whole scan, {name}", vertices + layer.displacement_mm, faces)
     evidence = as_target(trimmed_near(reconstruction.closed, hard.points_mm, args.trim_mm))
     measure(f"layer towards Poisson ({args.trim_mm:g} mm)",
             vertices + personal_detail(vertices, faces, evidence).displacement_mm, faces)

@@ -1,22 +1,29 @@
-"""A SONICOM subject treated as a new listener (issue 42): its head, with both ears as finely resolved as the
+"""A SONICOM subject treated as a new listener (issues 42, 54): its head, with both ears as finely resolved as the
 dataset has them (listener.dataset_heads.both_ears_head), turned at random and written in centimetres, no separate
 ear scans, the PPM template built without it; through the listener workflow end to end with NumCalc (both ears,
-a mesh per frequency band), then judged:
+a mesh per frequency band, the personal-detail layer on, the full grid with the dataset's 793 directions added),
+and its head as scanned solved the same way (listener.scanned_head), then judged:
 
 - the head frame found against the dataset's frame (the pose applied is known): axis and origin errors;
-- both PPM fits: median distance from the ear crop to the fitted PPM (mm);
-- NumCalc CPU hours of both ears (the step statuses kept in the step store);
-- QE/PE of the personal set by the evaluation's protocol: the dataset's reference HRIRs are the template, S is
-  calibrated so that they give 8 % QE heard through themselves, and the personal set is heard with them.
+- both PPM fits: median distance from the ear crop to the fitted PPM (mm); each ear's scan coverage;
+- NumCalc CPU hours of both ears, personal and reference heads (the step statuses kept in the step store);
+- the paper's protocol: the head as scanned is reference and template, S calibrated to 8 % QE on it, the personal
+  set heard with it on the dataset's 793 directions, both ears and each alone
+  (reporting.paper_protocol.both_ears_protocol), with the split by sagittal plane;
+- the second line, the evaluation's earlier protocol: the dataset's reference HRIRs are the template;
+- with --hard, the listener <subject>_hard: the same posed head, both ears fitted to hard scans given as its
+  separate ear scans (independent fixed draws), judged against <subject>_new's head as scanned.
 
-The steps are kept in benchmarks/results/new_listener/steps as they finish, so that a run stopped on the way (or a
-fresh clone) continues from them. The posed head and the run's outputs stay in results/new_listener/ and
+The steps are kept in benchmarks/results/new_listener/steps_dataset_grid as they finish, so that a run stopped on the
+way (or a fresh clone) continues from them. The posed head and the run's outputs stay in results/new_listener/ and
 results/listeners/ (not committed: the head is the dataset's).
 
-Run: .venv/bin/python benchmarks/new_listener.py [--subject P143] [--seed 7] [--cores 2] [--report-only]
-Last line: JSON with frame_axis_error_deg, frame_origin_error_mm, left_fit_median_mm, right_fit_median_mm,
-ears_solved, cpu_hours, delta_qe_pp, delta_pe_deg (null where the solve has not finished), the directions the two
-sets share, and each ear alone (the other ear from the dataset's set): <side>_ear_only_delta_qe_pp / _pe_deg.
+Run: .venv/bin/python benchmarks/new_listener.py [--subject P143] [--seed 7] [--cores 2] [--hard]
+     [--until remesh/validation.json] [--report-only]
+Last line: JSON with paper_delta_qe_pp, paper_delta_pe_deg, paper_left_delta_qe_pp, paper_right_delta_qe_pp,
+hard_paper_delta_qe_pp, hard_paper_delta_pe_deg, coverage_left, coverage_right, directions_compared,
+reference_cpu_hours, cpu_hours (null where a solve has not finished), the frame and fit figures, the dataset-reference
+line (delta_qe_pp, delta_pe_deg, <side>_ear_only_delta_qe_pp) and the split of another person's set by ear and plane.
 """
 from __future__ import annotations
 

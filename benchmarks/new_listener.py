@@ -117,6 +117,7 @@ def run(subject: str, seed: int, cores: int, targets: list[str] | None = None, h
     ``hard`` the listener whose ear scans are the hard ones (<subject>_hard)."""
     config = write_config(subject, seed, hard)
     snakemake(["--cores", str(cores), "--configfile", str(config.relative_to(ROOT)), "--rerun-triggers", "mtime",
+               "--rerun-incomplete",
                *(["--nolock"] if hard else []), *(["--", *targets] if targets else [])])
 
 

@@ -76,11 +76,12 @@ def coverage_picture(vertices_mm: np.ndarray, faces: np.ndarray, scan_points_mm:
                                title, scale=scale)
 
 
-def write_coverage(name: str, pinnae: dict[str, str | os.PathLike], scans: dict[str, str | os.PathLike],
+def write_coverage(name: str, pinnae: dict[str, str | os.PathLike], scans: dict[str, np.ndarray],
                    landmarks: str | os.PathLike, out_json: str | os.PathLike) -> dict:
-    """Each ear's coverage (side -> its fitted pinna file and its prepared scan file, left-ear frame, mm; the
-    template's ``landmarks`` file labels the regions) written atomically to ``out_json`` as {"seen_mm", "ears": {side:
-    :func:`pinna_coverage` rows}, "advice"}, with a picture per ear beside it (``coverage_<side>.png``)."""
+    """Each ear's coverage (side -> its fitted pinna file and its scan's points, both in the left-ear frame, mm: the
+    whole scan the personal-detail layer takes its evidence from; the template's ``landmarks`` file labels the
+    regions) written atomically to ``out_json`` as {"seen_mm", "ears": {side: :func:`pinna_coverage` rows}, "advice"},
+    with a picture per ear beside it (``coverage_<side>.png``)."""
     import json  # noqa: PLC0415
 
     import trimesh  # noqa: PLC0415
@@ -92,10 +93,9 @@ def write_coverage(name: str, pinnae: dict[str, str | os.PathLike], scans: dict[
     ears = {}
     for side, pinna_path in pinnae.items():
         pinna = trimesh.load(pinna_path, process=False, force="mesh")
-        scan = trimesh.load(scans[side], process=False, force="mesh")
-        ears[side] = pinna_coverage(pinna.vertices, pinna.faces, scan.vertices,
+        ears[side] = pinna_coverage(pinna.vertices, pinna.faces, scans[side],
                                     landmark_positions_mm(pinna_path, landmarks))
-        coverage_picture(pinna.vertices, pinna.faces, scan.vertices, Path(out_json).parent / f"coverage_{side}.png",
+        coverage_picture(pinna.vertices, pinna.faces, scans[side], Path(out_json).parent / f"coverage_{side}.png",
                          f"{name}, {side} ear: what the scan saw")
     result = {"seen_mm": SEEN_MM, "ears": ears, "advice": coverage_advice(ears)}
     write_text_atomic(out_json, json.dumps(result, indent=1) + "\n")

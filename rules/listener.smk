@@ -196,9 +196,9 @@ rule listener_scanned_head:
 # can rescan an ear before hours of NumCalc are spent on a head built from a blind scan
 rule listener_coverage:
     input:
-        # the fitted (stitched) pinnae, their prepared scans, the template's landmarks
+        # the fitted (stitched) pinnae, their whole scans (the layer's evidence), the template's landmarks
         pinnae=lambda wc: [RUN.listener_pinna(wc.listener, side) for side in ("left", "right")],
-        targets=expand("results/listeners/{{listener}}/target/{side}/pinna_target.ply", side=("left", "right")),
+        scans=lambda wc: [RUN.listener_target_scan(wc.listener, side) for side in ("left", "right")],
         landmarks=lambda wc: str(Path(RUN.listener_template()).parent / "landmarks.yaml"),
     output:
         coverage="results/listeners/{listener}/coverage.json",

@@ -80,6 +80,7 @@ def hard_ear_scans(subject: str, seed: int, pose: np.ndarray) -> dict[str, Path]
     import trimesh  # noqa: PLC0415
 
     from ppm.align.defects import hard_scan_of  # noqa: PLC0415
+    from stitching.both_ears import mirror_left_right  # noqa: PLC0415
 
     paths = {}
     for side in ("left", "right"):
@@ -90,17 +91,13 @@ def hard_ear_scans(subject: str, seed: int, pose: np.ndarray) -> dict[str, Path]
         crop = SONICOM / subject / f"pinna_{side}_crop.ply"
         if side == "left":
             scan, _ = hard_scan_of(crop, subject, "hard", HARD_SEED)
-            vertices = np.asarray(scan.vertices)
         else:
-            mirror = np.array([1.0, -1.0, 1.0])
-            clean = trimesh.load(crop, process=False, force="mesh")
             with tempfile.TemporaryDirectory() as folder:
                 mirrored = Path(folder) / "right_as_left.ply"
-                trimesh.Trimesh(np.asarray(clean.vertices) * mirror, clean.faces[:, ::-1], process=False).export(mirrored)
+                mirror_left_right(trimesh.load(crop, process=False, force="mesh")).export(mirrored)
                 scan, _ = hard_scan_of(mirrored, f"{subject}_right", "hard", HARD_SEED)
-            vertices = np.asarray(scan.vertices) * mirror
-            scan = trimesh.Trimesh(vertices, scan.faces[:, ::-1], process=False)
-        posed = (vertices @ pose[:3, :3].T + pose[:3, 3]) / 10.0
+            scan = mirror_left_right(scan)
+        posed = (np.asarray(scan.vertices) @ pose[:3, :3].T + pose[:3, 3]) / 10.0
         WORK.mkdir(parents=True, exist_ok=True)
         trimesh.Trimesh(posed, scan.faces, process=False).export(path)
     return paths
@@ -216,10 +213,7 @@ def fit_figures(base: Path, pose: np.ndarray) -> dict:
         axis = composite[1, :3] / np.linalg.norm(composite[1, :3])
         summary.update(frame_axis_error_deg=round(float(np.degrees(np.arccos(np.clip(axis[1], -1, 1)))), 3),
                        frame_origin_error_mm=round(float(np.linalg.norm(composite[:3, 3])), 2))
-    for side in ("left", "right"):
-        fit = base / "align" / side / "summary.json"
-        if fit.is_file():
-            summary[f"{side}_fit_median_mm"] = json.loads(fit.read_text())["distance_target_to_ppm"]["median_mm"]
+    summary.update(ear_figures(base))
     for name, key in (("remesh", "head_triangles"), ("scanned", "scanned_head_triangles")):
         if (base / name / "validation.json").is_file():
             validation = json.loads((base / name / "validation.json").read_text())
@@ -227,12 +221,23 @@ def fit_figures(base: Path, pose: np.ndarray) -> dict:
             if name == "remesh":
                 summary.update(left_pinna_edge_median_mm=round(validation["pinna_edge_mm"]["median"], 3),
                                right_pinna_edge_median_mm=round(validation["right_pinna_edge_mm"]["median"], 3))
+    return summary
+
+
+def ear_figures(base: Path, prefix: str = "") -> dict:
+    """Of a listener's run folder ``base``, what exists of: each ear's fit, median scan -> PPM (mm,
+    ``<prefix><side>_fit_median_mm``), and the share of its whole pinna the scan saw (``<prefix>coverage_<side>``)."""
+    figures = {}
+    for side in ("left", "right"):
+        fit = base / "align" / side / "summary.json"
+        if fit.is_file():
+            figures[f"{prefix}{side}_fit_median_mm"] = json.loads(fit.read_text())["distance_target_to_ppm"]["median_mm"]
     if (base / "coverage.json").is_file():
         ears = json.loads((base / "coverage.json").read_text())["ears"]
         for side in ("left", "right"):
-            summary[f"coverage_{side}"] = round(next(r["seen_share"] for r in ears[side]
-                                                     if r["region"] == "whole pinna"), 4)
-    return summary
+            figures[f"{prefix}coverage_{side}"] = round(next(r["seen_share"] for r in ears[side]
+                                                             if r["region"] == "whole pinna"), 4)
+    return figures
 
 
 def report(subject: str, seed: int) -> dict:
@@ -281,15 +286,7 @@ def report(subject: str, seed: int) -> dict:
     hard_base = ROOT / "results" / "listeners" / f"{subject}_hard"
     hard_cpu, _ = store_cpu(STORE / "listeners" / f"{subject}_hard" / "personal")
     summary["hard_cpu_hours"] = round(hard_cpu, 3)
-    for side in ("left", "right"):
-        fit = hard_base / "align" / side / "summary.json"
-        if fit.is_file():
-            summary[f"hard_{side}_fit_median_mm"] = json.loads(fit.read_text())["distance_target_to_ppm"]["median_mm"]
-    if (hard_base / "coverage.json").is_file():
-        ears = json.loads((hard_base / "coverage.json").read_text())["ears"]
-        for side in ("left", "right"):
-            summary[f"hard_coverage_{side}"] = round(next(r["seen_share"] for r in ears[side]
-                                                          if r["region"] == "whole pinna"), 4)
+    summary.update(ear_figures(hard_base, "hard_"))
     hard = hard_base / "hrtf" / "personal" / "HRIR.sofa"
     if hard.is_file() and scanned.is_file():
         judged = paper_line(hard, scanned, dataset)

@@ -172,9 +172,9 @@ rule listener_remesh:
 # variant "scanned", the paper protocol's reference and template
 rule listener_scanned_head:
     input:
-        head="results/listeners/{listener}/prepared/head.ply",
-        left="results/listeners/{listener}/align/left/aligned_pinna.ply",
-        right="results/listeners/{listener}/align/right/aligned_pinna.ply",
+        mesh="results/listeners/{listener}/prepared/head.ply",
+        pinna="results/listeners/{listener}/align/left/aligned_pinna.ply",
+        right_pinna="results/listeners/{listener}/align/right/aligned_pinna.ply",
     output:
         mesh="results/listeners/{listener}/scanned/head.ply",
         report="results/listeners/{listener}/scanned/validation.json",
@@ -189,7 +189,7 @@ rule listener_scanned_head:
         mem_mb=measured_mem_mb("remesh"),
         runtime=measured_runtime("remesh"),
     script:
-        "../workflow/scripts/listener_scanned_head.py"
+        "../workflow/scripts/remesh_head.py"
 
 
 # what each ear's scan saw, per region of its fitted pinna, with advice: made before any solve, so that a listener

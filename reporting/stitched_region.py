@@ -12,7 +12,7 @@ from ppm.align.target import Target
 from stitching.replace_pinna import under_pinna
 
 #: A truth point counts as seen by a scan when one of the scan's points lies this close (mm): the hard level resamples
-#: to 2 mm (ppm/data/scan_defects.yaml); the same figure as reporting.coverage.SEEN_MM and studies/committed.SEEN_MM.
+#: to 2 mm (ppm/data/scan_defects.yaml); reporting.coverage and studies/committed import it from here.
 SEEN_MM = 2.0
 
 

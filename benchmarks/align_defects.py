@@ -46,7 +46,7 @@ from ppm.align import AlignSettings, align, prepare_target
 from ppm.align.any_pose import PoseUncertainError
 from ppm.align.pose_by_fit import align_any_pose
 from ppm.align.defects import defective_scan, kinds, levels, random_pose
-from ppm.align.detail import personal_detail
+from ppm.align.detail import DetailSettings, personal_detail
 from ppm.align.pose import apply_similarity
 from ppm.align.report import one_sided_distances_mm, reverse_distances_mm
 from ppm.align.nricp import nricp_fit as fit_nricp
@@ -103,6 +103,23 @@ def fit_file(model: PinnaModel, mesh: trimesh.Trimesh, folder: Path, name: str, 
     return target, result, time.perf_counter() - start
 
 
+def detail_overrides(pairs: list[str], parser: argparse.ArgumentParser) -> dict:
+    """``SETTING=VALUE`` strings -> the layer's setting overrides (values parsed as YAML: 20, 2.5, true, null)."""
+    import yaml  # noqa: PLC0415
+
+    overrides = {}
+    for pair in pairs:
+        name, equals, value = pair.partition("=")
+        if not equals:
+            parser.error(f"--detail {pair!r}: give SETTING=VALUE, e.g. fold_smoothing_rounds=20")
+        overrides[name.strip()] = yaml.safe_load(value)
+    try:
+        DetailSettings.packaged(**overrides)
+    except Exception as error:  # an unknown setting names the data file and the setting
+        parser.error(f"--detail: {error}")
+    return overrides
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--data-root", type=Path, default=ROOT.parent / "shared" / "data" / "sonicom")
@@ -121,11 +138,18 @@ def main() -> None:
                         help="graded levels to judge (default: all; leave them out with --levels and only --kinds)")
     parser.add_argument("--segmented-evidence", action="store_true",
                         help="draw the layer towards the segmented pinna the fit saw, not the whole scan (the old way)")
+    parser.add_argument("--detail", nargs="*", default=[], metavar="SETTING=VALUE",
+                        help="lay the layer with these settings of ppm/data/personal_detail.yaml changed (values read "
+                             "as YAML), e.g. --detail fold_smoothing_rounds=20")
     parser.add_argument("--fold-weight", type=float, default=AlignSettings.fold_weight,
                         help=f"the aligner's fold barrier weight (default {AlignSettings.fold_weight})")
     args = parser.parse_args()
     settings = AlignSettings(fold_weight=args.fold_weight)
     print(f"alignment settings: fold_weight = {args.fold_weight}")
+    overrides = detail_overrides(args.detail, parser)
+    detail_settings = DetailSettings.packaged(**overrides)
+    if overrides:
+        print(f"personal-detail settings changed: {overrides}")
     schedules = {args.schedule: SCHEDULES[args.schedule]} if args.schedule else SCHEDULES
 
     subjects = args.subjects or sorted(p.name for p in args.data_root.iterdir()
@@ -162,7 +186,7 @@ def main() -> None:
             # it, or with --segmented-evidence only the pinna cut out for the fit (the layer before 2026-12-06)
             evidence = (target if args.segmented_evidence else
                         prepare_target(work / f"{subject}_{level}.ply", segment=False))
-            layer = personal_detail(result.vertices_mm, model.faces, evidence)
+            layer = personal_detail(result.vertices_mm, model.faces, evidence, detail_settings)
             detail = truth_distances(truth, result.vertices_mm + layer.displacement_mm, model.faces)
             detail_seconds.append(time.perf_counter() - start)
             guide = trimesh.Trimesh(result.vertices_mm, model.faces, process=False)
@@ -318,7 +342,7 @@ def main() -> None:
         "detail_beats_both": round(float(np.mean(beats)), 4),
         "detail_seconds_per_fit": round(float(np.mean(detail_seconds)), 1),
         "pose_success_rate": round(float(np.mean(successes)), 4) if successes else None,
-        "levels": measured, "subjects": subjects,
+        "levels": measured, "subjects": subjects, "detail_overrides": overrides,
         "seconds_per_fit": round(float(np.mean(fit_seconds)), 1) if fit_seconds else None,
         "nricp_schedule": best, "nricp_seconds_per_fit": round(float(np.mean(nricp_seconds)), 1),
         "poses": pose_results,

@@ -10,7 +10,8 @@ Prints, per surface, truth -> surface and surface -> truth median / p95 (mm) ove
 surface over the parts the scan saw (a scan point within 2 mm) and never saw. Candidate layers: the packaged layer
 towards the fit's segmented target (as before 2026-12-06) and towards the whole scan (the workflow's evidence now),
 the packaged layer towards the reconstruction trimmed to ``--trim-mm`` of the prepared scan (a denoised surface where the scan saw the
-ear), and variants of its settings (``ppm.align.detail.DetailSettings``). Last line: JSON of every surface's figures.
+ear), and variants of its settings (``ppm.align.detail.DetailSettings``); last, the layer towards the
+reconstruction trimmed 4 mm from the whole scan, with and without the folds smoothed (``fold_smoothing_rounds``). Last line: JSON of every surface's figures.
 """
 from __future__ import annotations
 
@@ -38,6 +39,9 @@ WHOLE_SCAN_VARIANTS = {
     "reach 8 mm": {"reach_mm": 8.0, "max_displacement_mm": 10.0},
     "normals 60 deg": {"normal_agreement_deg": 60.0},
     "facing pairs": {"facing_pairs": True},
+    "folds smoothed 20 rounds before halving": {"fold_smoothing_rounds": 20},
+    "folds smoothed, reach 8 mm, normals 60 deg": {"fold_smoothing_rounds": 20, "reach_mm": 8.0,
+                                                   "max_displacement_mm": 10.0, "normal_agreement_deg": 60.0},
 }
 
 
@@ -106,6 +110,12 @@ def main() -> None:
     for name, overrides in VARIANTS.items():
         layer = personal_detail(vertices, faces, evidence, DetailSettings.packaged(**overrides))
         measure(f"layer towards Poisson, {name}", vertices + layer.displacement_mm, faces)
+    # the reconstruction as evidence the way the workflow takes the scan now: trimmed 4 mm from the whole scan (as the
+    # baseline is), with and without the folds smoothed
+    near_whole = as_target(trimmed_near(reconstruction.closed, whole.points_mm, 4.0))
+    for name, overrides in {"": {}, ", folds smoothed": {"fold_smoothing_rounds": 20}}.items():
+        layer = personal_detail(vertices, faces, near_whole, DetailSettings.packaged(**overrides))
+        measure(f"layer towards Poisson 4 mm of the whole scan{name}", vertices + layer.displacement_mm, faces)
     print(json.dumps({"subject": args.subject, "trim_mm": args.trim_mm, "surfaces": figures}))
 
 

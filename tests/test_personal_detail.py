@@ -12,7 +12,7 @@ import pytest
 import trimesh
 
 from ppm.align.detail import (DetailSettings, closest_facing, closest_within, evidence_fade, personal_detail, rim_taper,
-                              rim_vertices, surface_roughness_deg)
+                              rim_vertices, surface_roughness_deg, unfold)
 from ppm.align.synthetic import add_scan_defects
 from ppm.align.target import target_from_mesh
 from ppm.errors import PpmError
@@ -180,3 +180,32 @@ def test_the_evidence_fade_keeps_the_ppm_where_the_scan_saw_nothing(posed):
     assert np.median(size[None][below]) > 0.02 and size[None][below].max() > 0.08  # the field reaches past the scan
     assert np.max(size[2.0][below]) == 0.0
     assert abs(np.median(size[2.0][seen]) - 0.5) < 0.1
+
+
+
+def test_smoothing_a_fold_keeps_the_field_around_it_where_halving_dents_it():
+    """A flat grid (1 mm spacing) lifted 1 mm by the field, one inner vertex also thrown 2.5 mm sideways over its
+    neighbours (folding its faces, as a wrong pair on a hard scan does). Halving pulls the fold's vertices back
+    towards the PPM and leaves a dent in the lift; smoothing the field around the fold first irons it out with the
+    lift kept. Neither leaves a folded face or moves the held rim."""
+    xs, ys = np.meshgrid(np.arange(13.0), np.arange(13.0))
+    vertices = np.stack([xs.ravel(), ys.ravel(), np.zeros(xs.size)], axis=1)
+    index = np.arange(13 * 13).reshape(13, 13)
+    quads = np.stack([index[:-1, :-1], index[:-1, 1:], index[1:, 1:], index[1:, :-1]], axis=-1).reshape(-1, 4)
+    faces = np.concatenate([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]])
+    held = np.isin(np.arange(len(vertices)), rim_vertices(faces))
+    field = np.where(held[:, None], 0.0, np.array([0.0, 0.0, 1.0]))
+    thrown = index[6, 6]
+    field[thrown] += [2.5, 0.0, 0.0]
+    settings = {rounds: DetailSettings.packaged(fold_smoothing_rounds=rounds) for rounds in (0, 20)}
+    halved, halvings, _ = unfold(vertices, faces, field, held, settings[0])
+    smoothed, halvings_after, smoothings = unfold(vertices, faces, field, held, settings[20])
+    assert halvings > 0 and smoothings > 0 and halvings_after == 0
+    ring = np.unique(faces[np.any(faces == thrown, axis=1)])
+    assert halved[ring, 2].min() < 0.6  # the lift dented around the fold
+    assert smoothed[ring, 2].min() > 0.9  # the lift kept
+    reference = trimesh.Trimesh(vertices, faces, process=False).face_normals
+    for result in (halved, smoothed):
+        moved = trimesh.Trimesh(vertices + result, faces, process=False).face_normals
+        assert np.einsum("ij,ij->i", moved, reference).min() > 0.0
+        np.testing.assert_array_equal(result[held], 0.0)

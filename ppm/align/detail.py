@@ -48,6 +48,7 @@ class DetailSettings:
     facing_pairs: bool = False
     roughness_limit_deg: float | None = None
     evidence_fade_mm: float | None = None
+    fold_smoothing_rounds: int = 0
 
     @classmethod
     def packaged(cls, **overrides) -> "DetailSettings":
@@ -72,6 +73,7 @@ class PersonalDetail:
     displacement_mm : (n, 3) displacement of every vertex (mm, project frame).
     trusted : (n,) whether the vertex took scan evidence in the last iteration.
     halvings : rounds of halving the displacements around folded faces.
+    smoothings : rounds of smoothing the field around folded faces (before any halving).
     stages : stiffness stages of the schedule kept (fewer than the schedule's where the roughness guard stopped it).
     """
 
@@ -79,6 +81,7 @@ class PersonalDetail:
     trusted: np.ndarray
     halvings: int
     stages: int = 0
+    smoothings: int = 0
 
     @property
     def size_mm(self) -> np.ndarray:
@@ -92,7 +95,7 @@ class PersonalDetail:
                 "displacement_median_mm": round(float(np.median(size)), 4),
                 "displacement_p95_mm": round(float(np.percentile(size, 95)), 4),
                 "displacement_max_mm": round(float(size.max()), 4), "fold_halvings": self.halvings,
-                "stiffness_stages": self.stages}
+                "fold_smoothings": self.smoothings, "stiffness_stages": self.stages}
 
 
 def rim_vertices(faces: np.ndarray) -> np.ndarray:
@@ -117,6 +120,29 @@ def laplacian(vertices_mm: np.ndarray, faces: np.ndarray) -> sp.csr_matrix:
     adjacency = sp.coo_matrix((np.r_[weight, weight], (np.r_[edges[:, 0], edges[:, 1]], np.r_[edges[:, 1], edges[:, 0]])),
                               shape=(n, n)).tocsr()
     return (sp.diags(np.asarray(adjacency.sum(axis=1)).ravel()) - adjacency).tocsr()
+
+
+def neighbour_mean(faces: np.ndarray, n: int) -> sp.csr_matrix:
+    """(n, n) operator that gives each vertex the mean of its mesh neighbours' values (a vertex without neighbours
+    keeps 0)."""
+    edges = _edges(faces)
+    adjacency = sp.coo_matrix((np.ones(2 * len(edges)), (np.r_[edges[:, 0], edges[:, 1]], np.r_[edges[:, 1], edges[:, 0]])),
+                              shape=(n, n)).tocsr()
+    adjacency.data[:] = 1.0
+    degree = np.asarray(adjacency.sum(axis=1)).ravel()
+    return (sp.diags(1.0 / np.maximum(degree, 1.0)) @ adjacency).tocsr()
+
+
+def smooth_around(displacement_mm: np.ndarray, folded_vertices: np.ndarray, mean: sp.csr_matrix,
+                  held: np.ndarray) -> None:
+    """One round of untangling in place: the vertices of folded faces and their neighbours (not the ``held`` ones,
+    the rim) take the mean of their neighbours' displacements (mm), so that a fold is ironed out by its surroundings'
+    displacement instead of pulled back to the PPM (which halving does)."""
+    around = np.zeros(len(displacement_mm), dtype=bool)
+    around[folded_vertices] = True
+    around |= (mean @ around.astype(np.float64)) > 0.0
+    around &= ~held
+    displacement_mm[around] = (mean @ displacement_mm)[around]
 
 
 def rim_taper(vertices_mm: np.ndarray, faces: np.ndarray, taper_mm: float) -> np.ndarray:
@@ -240,6 +266,37 @@ def evidence_fade(vertices_mm: np.ndarray, evidence: np.ndarray, fade_mm: float)
     return np.clip(2.0 - distance / fade_mm, 0.0, 1.0)
 
 
+def unfold(vertices_mm: np.ndarray, faces: np.ndarray, displacement_mm: np.ndarray, held: np.ndarray,
+           settings: DetailSettings) -> tuple[np.ndarray, int, int]:
+    """The field (mm) with no face folded: none turned against the PPM's, no neighbours creased beyond
+    ``crease_limit_deg`` and the PPM's own crease there. First up to ``fold_smoothing_rounds`` rounds of
+    :func:`smooth_around` (``held``: vertices that stay, the rim), then halving the displacements around every folded
+    face until none is; returns the field, the halvings and the smoothing rounds."""
+    displacement = np.array(displacement_mm, dtype=np.float64)
+    n = len(vertices_mm)
+    reference = _face_normals(vertices_mm, faces)
+    pairs = trimesh.Trimesh(vertices_mm, faces, process=False).face_adjacency
+    crease_cos = np.minimum(np.cos(np.deg2rad(settings.crease_limit_deg)),
+                            np.einsum("ij,ij->i", reference[pairs[:, 0]], reference[pairs[:, 1]])) - 1e-9
+    mean = neighbour_mean(faces, n) if settings.fold_smoothing_rounds > 0 else None
+    smoothings = halvings = 0
+    while True:
+        normals = _face_normals(vertices_mm + displacement, faces)
+        folded = np.einsum("ij,ij->i", normals, reference) <= 0.0
+        creased = np.einsum("ij,ij->i", normals[pairs[:, 0]], normals[pairs[:, 1]]) < crease_cos
+        folded[pairs[creased].ravel()] = True
+        if not folded.any():
+            return displacement, halvings, smoothings
+        if smoothings < settings.fold_smoothing_rounds:
+            smooth_around(displacement, np.unique(faces[folded]), mean, held)
+            smoothings += 1
+            continue
+        if halvings == 60:
+            raise PpmError("the personal-detail layer keeps folding faces after 60 halvings; check the fit")
+        displacement[np.unique(faces[folded])] *= 0.5
+        halvings += 1
+
+
 def personal_detail(vertices_mm: np.ndarray, faces: np.ndarray, target: Target,
                     settings: DetailSettings | None = None) -> PersonalDetail:
     """The personal-detail layer of a posed PPM (``vertices_mm``, ``faces``: mm, project frame) on ``target``.
@@ -315,22 +372,9 @@ def personal_detail(vertices_mm: np.ndarray, faces: np.ndarray, target: Target,
         stages += 1
     size = np.linalg.norm(displacement, axis=1)
     displacement *= np.minimum(1.0, settings.max_displacement_mm / np.maximum(size, 1e-12))[:, None]
-    reference = _face_normals(vertices_mm, faces)
-    pairs = trimesh.Trimesh(vertices_mm, faces, process=False).face_adjacency
-    crease_cos = np.minimum(np.cos(np.deg2rad(settings.crease_limit_deg)),
-                            np.einsum("ij,ij->i", reference[pairs[:, 0]], reference[pairs[:, 1]])) - 1e-9
-    halvings = 0
-    for halvings in range(0, 61):
-        normals = _face_normals(vertices_mm + displacement, faces)
-        folded = np.einsum("ij,ij->i", normals, reference) <= 0.0
-        creased = np.einsum("ij,ij->i", normals[pairs[:, 0]], normals[pairs[:, 1]]) < crease_cos
-        folded[pairs[creased].ravel()] = True
-        if not folded.any():
-            break
-        displacement[np.unique(faces[folded])] *= 0.5
-    else:
-        raise PpmError("the personal-detail layer keeps folding faces after 60 halvings; check the fit")
-    return PersonalDetail(displacement_mm=displacement, trusted=trusted, halvings=halvings, stages=stages)
+    displacement, halvings, smoothings = unfold(vertices_mm, faces, displacement, taper <= 0.0, settings)
+    return PersonalDetail(displacement_mm=displacement, trusted=trusted, halvings=halvings, stages=stages,
+                          smoothings=smoothings)
 
 
 def add_personal_detail(model, target: Target, settings: DetailSettings | None = None,

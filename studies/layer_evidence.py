@@ -11,7 +11,9 @@ surface over the parts the scan saw (a scan point within 2 mm) and never saw. Ca
 towards the fit's segmented target (as before 2026-12-06) and towards the whole scan (the workflow's evidence now),
 the packaged layer towards the reconstruction trimmed to ``--trim-mm`` of the prepared scan (a denoised surface where the scan saw the
 ear), and variants of its settings (``ppm.align.detail.DetailSettings``); last, the layer towards the
-reconstruction trimmed 4 mm from the whole scan, with and without the folds smoothed (``fold_smoothing_rounds``). Last line: JSON of every surface's figures.
+reconstruction trimmed 4 mm from the whole scan, and towards the whole scan joined with the reconstruction's fill of its
+holes (its faces farther than 1 or 2 mm from every scan point), each with and without the folds smoothed
+(``fold_smoothing_rounds``). Last line: JSON of every surface's figures.
 """
 from __future__ import annotations
 
@@ -116,6 +118,20 @@ def main() -> None:
     for name, overrides in {"": {}, ", folds smoothed": {"fold_smoothing_rounds": 20}}.items():
         layer = personal_detail(vertices, faces, near_whole, DetailSettings.packaged(**overrides))
         measure(f"layer towards Poisson 4 mm of the whole scan{name}", vertices + layer.displacement_mm, faces)
+    # the whole scan with the reconstruction's fill of its holes: the reconstruction's faces (trimmed 4 mm from the
+    # scan) farther than ``gap`` from every scan point, joined to the scan, so the raw points speak where there are
+    # any and the fill only where there are none
+    from scipy.spatial import cKDTree  # noqa: PLC0415
+
+    near_scan = cKDTree(whole.points_mm)
+    for gap in (1.0, 2.0):
+        fill = trimmed_near(reconstruction.closed, whole.points_mm, 4.0)
+        fill = trimesh.Trimesh(fill.vertices, fill.faces[near_scan.query(fill.triangles_center)[0] > gap], process=False)
+        fill.remove_unreferenced_vertices()
+        joined = as_target(trimesh.util.concatenate([whole.mesh, fill]))
+        for name, overrides in {"": {}, ", folds smoothed": {"fold_smoothing_rounds": 20}}.items():
+            layer = personal_detail(vertices, faces, joined, DetailSettings.packaged(**overrides))
+            measure(f"layer towards the scan + fill beyond {gap:g} mm{name}", vertices + layer.displacement_mm, faces)
     print(json.dumps({"subject": args.subject, "trim_mm": args.trim_mm, "surfaces": figures}))
 
 

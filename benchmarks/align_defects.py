@@ -103,8 +103,9 @@ def fit_file(model: PinnaModel, mesh: trimesh.Trimesh, folder: Path, name: str, 
     return target, result, time.perf_counter() - start
 
 
-def detail_overrides(pairs: list[str], parser: argparse.ArgumentParser) -> dict:
-    """``SETTING=VALUE`` strings -> the layer's setting overrides (values parsed as YAML: 20, 2.5, true, null)."""
+def detail_overrides(pairs: list[str], parser: argparse.ArgumentParser) -> tuple[dict, DetailSettings]:
+    """``SETTING=VALUE`` strings -> the layer's setting overrides (values parsed as YAML: 20, 2.5, true, null) and
+    the packaged settings with them."""
     import yaml  # noqa: PLC0415
 
     overrides = {}
@@ -114,10 +115,9 @@ def detail_overrides(pairs: list[str], parser: argparse.ArgumentParser) -> dict:
             parser.error(f"--detail {pair!r}: give SETTING=VALUE, e.g. fold_smoothing_rounds=20")
         overrides[name.strip()] = yaml.safe_load(value)
     try:
-        DetailSettings.packaged(**overrides)
+        return overrides, DetailSettings.packaged(**overrides)
     except Exception as error:  # an unknown setting names the data file and the setting
         parser.error(f"--detail: {error}")
-    return overrides
 
 
 def main() -> None:
@@ -146,8 +146,7 @@ def main() -> None:
     args = parser.parse_args()
     settings = AlignSettings(fold_weight=args.fold_weight)
     print(f"alignment settings: fold_weight = {args.fold_weight}")
-    overrides = detail_overrides(args.detail, parser)
-    detail_settings = DetailSettings.packaged(**overrides)
+    overrides, detail_settings = detail_overrides(args.detail, parser)
     if overrides:
         print(f"personal-detail settings changed: {overrides}")
     schedules = {args.schedule: SCHEDULES[args.schedule]} if args.schedule else SCHEDULES

@@ -114,7 +114,8 @@ def main() -> None:
         measure(f"layer towards Poisson, {name}", vertices + layer.displacement_mm, faces)
     # the reconstruction as evidence the way the workflow takes the scan now: trimmed 4 mm from the whole scan (as the
     # baseline is), with and without the folds smoothed
-    near_whole = as_target(trimmed_near(reconstruction.closed, whole.points_mm, 4.0))
+    trimmed_whole = trimmed_near(reconstruction.closed, whole.points_mm, 4.0)
+    near_whole = as_target(trimmed_whole)
     for name, overrides in {"": {}, ", folds smoothed": {"fold_smoothing_rounds": 20}}.items():
         layer = personal_detail(vertices, faces, near_whole, DetailSettings.packaged(**overrides))
         measure(f"layer towards Poisson 4 mm of the whole scan{name}", vertices + layer.displacement_mm, faces)
@@ -125,8 +126,8 @@ def main() -> None:
 
     near_scan = cKDTree(whole.points_mm)
     for gap in (1.0, 2.0):
-        fill = trimmed_near(reconstruction.closed, whole.points_mm, 4.0)
-        fill = trimesh.Trimesh(fill.vertices, fill.faces[near_scan.query(fill.triangles_center)[0] > gap], process=False)
+        far = near_scan.query(trimmed_whole.triangles_center)[0] > gap
+        fill = trimesh.Trimesh(trimmed_whole.vertices, trimmed_whole.faces[far], process=False)
         fill.remove_unreferenced_vertices()
         joined = as_target(trimesh.util.concatenate([whole.mesh, fill]))
         for name, overrides in {"": {}, ", folds smoothed": {"fold_smoothing_rounds": 20}}.items():

@@ -57,20 +57,21 @@ def main() -> None:
                   "the other ear's clean crop": trimesh.load(mirrored, process=False, force="mesh")}
     figures: dict[str, dict] = {"unseen_points": int(len(unseen))}
 
-    layer_distance: list[np.ndarray] = []
-
-    def measure(name: str, surface: trimesh.Trimesh, covered: np.ndarray | None = None) -> np.ndarray:
+    def measure(name: str, surface: trimesh.Trimesh, covered: np.ndarray | None = None,
+                layer: np.ndarray | None = None) -> np.ndarray:
+        """Print and keep ``surface``'s distances over the unseen points; with ``covered`` (the points the surface
+        saw) also the share and the median there, with ``layer``'s (the layer's distances) beside it."""
         distance = trimesh.proximity.closest_point(surface, unseen)[1]
         row = {"median_mm": round(float(np.median(distance)), 3), "p95_mm": round(float(np.percentile(distance, 95)), 3)}
         text = f"median / p95 {row['median_mm']:.3f} / {row['p95_mm']:.3f} mm"
         if covered is not None:
             row["covered_share"] = round(float(covered.mean()), 3)
-            row["covered_median_mm"] = round(float(np.median(distance[covered])), 3) if covered.any() else None
-            row["layer_there_median_mm"] = (round(float(np.median(layer_distance[0][covered])), 3) if covered.any()
-                                            else None)
-            text += (f"; it saw {100 * covered.mean():.0f} % of them"
-                     + (f", {row['covered_median_mm']:.3f} mm there (median; the layer "
-                        f"{row['layer_there_median_mm']:.3f})" if covered.any() else ""))
+            text += f"; it saw {100 * covered.mean():.0f} % of them"
+            if covered.any():
+                row["covered_median_mm"] = round(float(np.median(distance[covered])), 3)
+                row["layer_there_median_mm"] = round(float(np.median(layer[covered])), 3)
+                text += (f", {row['covered_median_mm']:.3f} mm there (median; the layer "
+                         f"{row['layer_there_median_mm']:.3f})")
         figures[name] = row
         print(f"{args.subject} {name:30s} {text}", flush=True)
         return distance
@@ -78,13 +79,13 @@ def main() -> None:
     print(f"{args.subject}: {len(unseen)} truth points of the stitched region the left hard scan never saw")
     measure("PPM (ppm_hard)", fit)
     whole = prepare_target(scan_path, side="left", segment=False)
-    layer_distance.append(measure("layer (whole scan)", trimesh.Trimesh(vertices + personal_detail(vertices, faces, whole).displacement_mm,
-                                                  faces, process=False)))
+    layered = vertices + personal_detail(vertices, faces, whole).displacement_mm
+    layer_distance = measure("layer (whole scan)", trimesh.Trimesh(layered, faces, process=False))
     for name, other in others.items():
         moved, _, _ = trimesh.registration.icp(np.asarray(other.vertices), np.asarray(scan.vertices),
                                                max_iterations=60, reflection=False, scale=False)
         registered = trimesh.Trimesh(trimesh.transform_points(other.vertices, moved), other.faces, process=False)
-        measure(name, registered, seen_by(registered.vertices, unseen))
+        measure(name, registered, seen_by(registered.vertices, unseen), layer_distance)
     print(json.dumps({"subject": args.subject, **figures}))
 
 

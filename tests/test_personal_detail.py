@@ -182,7 +182,6 @@ def test_the_evidence_fade_keeps_the_ppm_where_the_scan_saw_nothing(posed):
     assert abs(np.median(size[2.0][seen]) - 0.5) < 0.1
 
 
-
 def test_smoothing_a_fold_keeps_the_field_around_it_where_halving_dents_it():
     """A flat grid (1 mm spacing) lifted 1 mm by the field, one inner vertex also thrown 2.5 mm sideways over its
     neighbours (folding its faces, as a wrong pair on a hard scan does). Halving pulls the fold's vertices back

@@ -110,15 +110,18 @@ def _edges(faces: np.ndarray) -> np.ndarray:
     return np.unique(edges, axis=0)
 
 
+def _adjacency(edges: np.ndarray, weight: np.ndarray, n: int) -> sp.csr_matrix:
+    """(n, n) symmetric matrix with ``weight`` on each of the (unique) ``edges``, both ways."""
+    return sp.coo_matrix((np.r_[weight, weight], (np.r_[edges[:, 0], edges[:, 1]], np.r_[edges[:, 1], edges[:, 0]])),
+                         shape=(n, n)).tocsr()
+
+
 def laplacian(vertices_mm: np.ndarray, faces: np.ndarray) -> sp.csr_matrix:
     """Graph Laplacian with edge weights 1 / length^2 (1/mm^2), so that s^T L s approximates the integral of
     |grad s|^2 per unit area on an even mesh."""
     edges = _edges(faces)
     length = np.linalg.norm(vertices_mm[edges[:, 0]] - vertices_mm[edges[:, 1]], axis=1)
-    weight = 1.0 / np.maximum(length, 1e-3) ** 2
-    n = len(vertices_mm)
-    adjacency = sp.coo_matrix((np.r_[weight, weight], (np.r_[edges[:, 0], edges[:, 1]], np.r_[edges[:, 1], edges[:, 0]])),
-                              shape=(n, n)).tocsr()
+    adjacency = _adjacency(edges, 1.0 / np.maximum(length, 1e-3) ** 2, len(vertices_mm))
     return (sp.diags(np.asarray(adjacency.sum(axis=1)).ravel()) - adjacency).tocsr()
 
 
@@ -126,9 +129,7 @@ def neighbour_mean(faces: np.ndarray, n: int) -> sp.csr_matrix:
     """(n, n) operator that gives each vertex the mean of its mesh neighbours' values (a vertex without neighbours
     keeps 0)."""
     edges = _edges(faces)
-    adjacency = sp.coo_matrix((np.ones(2 * len(edges)), (np.r_[edges[:, 0], edges[:, 1]], np.r_[edges[:, 1], edges[:, 0]])),
-                              shape=(n, n)).tocsr()
-    adjacency.data[:] = 1.0
+    adjacency = _adjacency(edges, np.ones(len(edges)), n)
     degree = np.asarray(adjacency.sum(axis=1)).ravel()
     return (sp.diags(1.0 / np.maximum(degree, 1.0)) @ adjacency).tocsr()
 

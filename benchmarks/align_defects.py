@@ -9,7 +9,9 @@ ppm/data/scan_defects.yaml). Each scan is fitted
     stiffness schedule that is best for these scans: every schedule of SCHEDULES is tried at the hardest
     level and the one with the smallest truth distance (mean of median and p95 over subjects) is used;
   * by the PPM plus its personal-detail layer (ppm.align.detail, packaged settings) drawn towards the whole scan
-    (as the workflow does; --segmented-evidence: towards the segmented pinna the fit saw, as before 2026-12-06);
+    (as the workflow does; --segmented-evidence: towards the segmented pinna the fit saw, as before 2026-12-06),
+    joined with the scan's reconstruction's fill of its holes where the layer's hole_fill_mm asks for it
+    (stitching.reconstruction.layer_evidence; e.g. --detail hole_fill_mm=2);
   * by the scan itself made watertight as a careful user would (`poisson`: MeshLab's outlier selection and
     screened Poisson reconstruction through pymeshlab, trimmed 4 mm from the scan; stitching/reconstruction.py,
     settings in stitching/data/scan_reconstruction.yaml), the baseline the layer must beat (issue 56);
@@ -54,7 +56,7 @@ from ppm.align.target import Target, surface_without_outliers
 from ppm.model import PinnaModel
 from ppm.template.register import NRICP_STEPS
 from reporting.stitched_region import region_distances, seen_by
-from stitching.reconstruction import poisson_surface
+from stitching.reconstruction import layer_evidence, poisson_surface
 
 ROOT = Path(__file__).resolve().parents[1]
 #: NRICP stiffness schedules tried (stiff to supple): ending after 1 ... 4 of NRICP_STEPS' stages, and a
@@ -183,8 +185,8 @@ def main() -> None:
             start = time.perf_counter()
             # the layer's evidence: the whole scan (outliers left to the layer's own guards), as the workflow gives
             # it, or with --segmented-evidence only the pinna cut out for the fit (the layer before 2026-12-06)
-            evidence = (target if args.segmented_evidence else
-                        prepare_target(work / f"{subject}_{level}.ply", segment=False))
+            evidence = layer_evidence(target if args.segmented_evidence else
+                                      prepare_target(work / f"{subject}_{level}.ply", segment=False), detail_settings)
             layer = personal_detail(result.vertices_mm, model.faces, evidence, detail_settings)
             detail = truth_distances(truth, result.vertices_mm + layer.displacement_mm, model.faces)
             detail_seconds.append(time.perf_counter() - start)

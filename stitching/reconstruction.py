@@ -11,6 +11,7 @@ from __future__ import annotations
 import dataclasses
 from functools import lru_cache
 from importlib import resources
+from typing import TYPE_CHECKING
 
 import numpy as np
 import trimesh
@@ -18,6 +19,10 @@ import yaml
 from scipy.spatial import cKDTree
 
 from .errors import StitchError
+
+if TYPE_CHECKING:  # the layer's types, for the hints only
+    from ppm.align.detail import DetailSettings
+    from ppm.align.target import Target
 
 
 @lru_cache(maxsize=1)
@@ -99,3 +104,56 @@ def trimmed_near(surface: trimesh.Trimesh, points: np.ndarray, trim_mm: float, s
     out = trimesh.Trimesh(surface.vertices, surface.faces[near[largest]], process=False)
     out.remove_unreferenced_vertices()
     return out
+
+
+def enclosed_by(points_mm: np.ndarray, centres_mm: np.ndarray, normals: np.ndarray, radius_mm: float,
+                open_angle_deg: float) -> np.ndarray:
+    """Per centre (mm, with its unit normal), whether the ``points_mm`` within ``radius_mm`` surround it in its
+    tangent plane: no angular gap between them wider than ``open_angle_deg`` as seen from the centre. A hole in a
+    scan is surrounded by scan; what a reconstruction adds beyond the scan's outer edge (where it balloons round
+    the crop) has scan on one side only."""
+    tree = cKDTree(np.asarray(points_mm, np.float64))
+    out = np.zeros(len(centres_mm), dtype=bool)
+    for index, group in enumerate(tree.query_ball_point(np.asarray(centres_mm, np.float64), radius_mm)):
+        if len(group) < 3:
+            continue
+        offsets = np.asarray(points_mm)[group] - centres_mm[index]
+        normal = normals[index]
+        in_plane = offsets - np.outer(offsets @ normal, normal)
+        axis = in_plane[np.argmax(np.linalg.norm(in_plane, axis=1))]
+        axis = axis / max(float(np.linalg.norm(axis)), 1e-12)
+        angles = np.sort(np.arctan2(in_plane @ np.cross(normal, axis), in_plane @ axis))
+        gaps = np.diff(np.r_[angles, angles[0] + 2.0 * np.pi])
+        out[index] = np.degrees(gaps.max()) <= open_angle_deg
+    return out
+
+
+def hole_fill(scan: trimesh.Trimesh, beyond_mm: float, settings: dict | None = None,
+              source: str = "scan") -> trimesh.Trimesh:
+    """The screened Poisson reconstruction's fill of the holes of ``scan`` (a triangle mesh in mm): the faces of
+    its trimmed surface (:func:`poisson_surface`) whose centre lies farther than ``beyond_mm`` from every scan
+    vertex, where the scan itself says nothing, and that the scan surrounds (:func:`enclosed_by`, the ``fill``
+    settings of stitching/data/scan_reconstruction.yaml): a hole's fill, not the balloon round the crop's edge.
+    May be empty (a scan without holes)."""
+    settings = settings or reconstruction_settings()
+    surface = poisson_surface(scan, settings, source).surface
+    vertices = np.asarray(scan.vertices)
+    far = np.flatnonzero(cKDTree(vertices).query(surface.triangles_center)[0] > beyond_mm)
+    enclosed = enclosed_by(vertices, surface.triangles_center[far], surface.face_normals[far],
+                           float(settings["fill"]["surround_radius_mm"]), float(settings["fill"]["open_angle_deg"]))
+    fill = trimesh.Trimesh(surface.vertices, surface.faces[far[enclosed]], process=False)
+    fill.remove_unreferenced_vertices()
+    return fill
+
+
+def layer_evidence(scan: Target, detail_settings: DetailSettings) -> Target:
+    """The personal-detail layer's evidence from a prepared scan (``ppm.align.target.Target``, mm, project frame):
+    the scan itself, joined with its reconstruction's fill of its holes (:func:`hole_fill`) where the layer's
+    ``hole_fill_mm`` setting asks for it (ppm/data/personal_detail.yaml), so that the raw points speak where there
+    are any and the fill only where there are none. Import bpy before this in a process that uses both."""
+    from ppm.align.detail import joined_evidence  # noqa: PLC0415
+
+    if detail_settings.hole_fill_mm is None:
+        return scan
+    fill = hole_fill(scan.mesh, float(detail_settings.hole_fill_mm), source=scan.source)
+    return joined_evidence(scan, fill)

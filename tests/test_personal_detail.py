@@ -208,3 +208,36 @@ def test_smoothing_a_fold_keeps_the_field_around_it_where_halving_dents_it():
         moved = trimesh.Trimesh(vertices + result, faces, process=False).face_normals
         assert np.einsum("ij,ij->i", moved, reference).min() > 0.0
         np.testing.assert_array_equal(result[held], 0.0)
+
+
+def test_the_layer_s_evidence_takes_a_reconstruction_s_fill_of_a_hole_and_not_its_balloon(posed):
+    """The PPM pushed 1 mm out along its normals, scanned with a 7 mm hole deep in the pinna: the reconstruction's
+    fill (hole_fill_mm 2) lies in the hole only, not round the crop's edges where Poisson balloons (the surround
+    test), and joins the layer's evidence; with hole_fill_mm null the evidence is the scan itself. Drawn towards the
+    joined evidence the layer holds the rim and folds nothing."""
+    import bpy  # noqa: F401  (before pymeshlab)
+    from scipy.spatial import cKDTree
+
+    from stitching.reconstruction import hole_fill, layer_evidence, reconstruction_settings
+
+    vertices, faces, normals = posed
+    centre = int(np.argmax(rim_taper(vertices, faces, 40.0)))
+    truth = trimesh.Trimesh(vertices + 1.0 * normals, faces, process=False)
+    scan = add_scan_defects(truth, np.random.default_rng(3), noise_mm=0.02, holes=1, hole_radius_mm=7.0,
+                            outlier_share=0.0, hole_centres=[centre])
+    target = target_from_mesh(scan, "PPM 1 mm out, a hole deep in the pinna")
+    assert layer_evidence(target, DetailSettings.packaged()) is target  # hole_fill_mm null: the scan alone
+    fill = hole_fill(scan, 2.0)
+    assert len(fill.faces) > 20
+    assert cKDTree(scan.vertices).query(fill.triangles_center)[0].min() > 2.0
+    assert np.linalg.norm(fill.triangles_center - truth.vertices[centre], axis=1).max() < 7.0  # in the hole only
+    unsurrounded = hole_fill(scan, 2.0, {**reconstruction_settings(), "fill": {"surround_radius_mm": 8.0,
+                                                                               "open_angle_deg": 360.0}})
+    assert unsurrounded.area > 5.0 * fill.area  # what the surround test keeps out: the balloon round the edges
+    settings = DetailSettings.packaged(hole_fill_mm=2.0)
+    evidence = layer_evidence(target, settings)
+    assert len(evidence.mesh.faces) == len(scan.faces) + len(fill.faces) and "fill" in evidence.source
+    layer = personal_detail(vertices, faces, evidence, settings)
+    np.testing.assert_array_equal(layer.displacement_mm[rim_vertices(faces)], 0.0)
+    moved = trimesh.Trimesh(vertices + layer.displacement_mm, faces, process=False).face_normals
+    assert np.einsum("ij,ij->i", moved, trimesh.Trimesh(vertices, faces, process=False).face_normals).min() > 0.0

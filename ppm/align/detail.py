@@ -49,6 +49,7 @@ class DetailSettings:
     roughness_limit_deg: float | None = None
     evidence_fade_mm: float | None = None
     fold_smoothing_rounds: int = 0
+    hole_fill_mm: float | None = None
 
     @classmethod
     def packaged(cls, **overrides) -> "DetailSettings":
@@ -96,6 +97,18 @@ class PersonalDetail:
                 "displacement_p95_mm": round(float(np.percentile(size, 95)), 4),
                 "displacement_max_mm": round(float(size.max()), 4), "fold_halvings": self.halvings,
                 "fold_smoothings": self.smoothings, "stiffness_stages": self.stages}
+
+
+def joined_evidence(scan: Target, fill: trimesh.Trimesh) -> Target:
+    """The layer's evidence: the prepared scan's surface joined with ``fill`` (a surface where the scan has none,
+    e.g. a reconstruction's fill of its holes: ``stitching.reconstruction.layer_evidence``), mm, project frame. The
+    two keep their own faces and open edges; the fill's outward normals must agree with the scan's."""
+    if len(fill.faces) == 0:
+        return scan
+    joined = trimesh.util.concatenate([trimesh.Trimesh(scan.mesh.vertices, scan.mesh.faces, process=False),
+                                       trimesh.Trimesh(fill.vertices, fill.faces, process=False)])
+    return Target(np.asarray(joined.vertices), np.asarray(joined.vertex_normals), joined,
+                  f"{scan.source} with its reconstruction's fill of {len(fill.faces)} faces", scan.warnings, scan.pose)
 
 
 def rim_vertices(faces: np.ndarray) -> np.ndarray:

@@ -31,7 +31,6 @@ import argparse
 import json
 import subprocess
 import sys
-import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -47,8 +46,14 @@ WORK = ROOT / "results" / "new_listener"
 #: KEPT / "steps" for the record.
 STORE = KEPT / "steps_dataset_grid"
 DATASET_SOFA = "hrir_mesh2hrtf_48k.sofa"
-#: The evaluation's hard-scan seed (config evaluation.hard_scan.seed): the left ear's hard scan is the evaluation's.
-HARD_SEED = 19
+
+
+def evaluation_hard_scan() -> dict:
+    """The evaluation's hard-scan recipe (config/config.yaml evaluation.hard_scan: level and seed): the left ear's
+    hard scan is the evaluation's own."""
+    import yaml  # noqa: PLC0415
+
+    return yaml.safe_load((ROOT / "config" / "config.yaml").read_text(encoding="utf-8"))["evaluation"]["hard_scan"]
 
 
 def posed_head(subject: str, seed: int) -> tuple[Path, np.ndarray]:
@@ -74,14 +79,16 @@ def posed_head(subject: str, seed: int) -> tuple[Path, np.ndarray]:
 def hard_ear_scans(subject: str, seed: int, pose: np.ndarray) -> dict[str, Path]:
     """Both ears of the subject scanned at the ``hard`` level of ppm/data/scan_defects.yaml (occlusion holes, 2 mm
     sampling, 0.5 mm noise, outliers, spikes, a partial crop), each its own fixed draw: the left ear is the
-    evaluation's own hard scan (seed HARD_SEED mixed with the subject's name, evaluation/sonicom/hard_scans/), the
-    right ear the same recipe on the mirrored right crop with the seed mixed with "<subject>_right", mirrored back.
+    evaluation's own hard scan (:func:`evaluation_hard_scan`, the seed mixed with the subject's name,
+    evaluation/sonicom/hard_scans/), the right ear the same recipe on the mirrored right crop with the seed mixed with
+    "<subject>_right" (stitching.both_ears.right_ear_scan_as_left), mirrored back.
     Posed and written in centimetres as the head is; returns side -> file."""
     import trimesh  # noqa: PLC0415
 
     from ppm.align.defects import hard_scan_of  # noqa: PLC0415
-    from stitching.both_ears import mirror_left_right  # noqa: PLC0415
+    from stitching.both_ears import mirror_left_right, right_ear_scan_as_left  # noqa: PLC0415
 
+    recipe = evaluation_hard_scan()
     paths = {}
     for side in ("left", "right"):
         path = WORK / f"{subject}_hard_{side}_ear_cm.ply"
@@ -90,13 +97,9 @@ def hard_ear_scans(subject: str, seed: int, pose: np.ndarray) -> dict[str, Path]
             continue
         crop = SONICOM / subject / f"pinna_{side}_crop.ply"
         if side == "left":
-            scan, _ = hard_scan_of(crop, subject, "hard", HARD_SEED)
+            scan, _ = hard_scan_of(crop, subject, recipe["level"], recipe["seed"])
         else:
-            with tempfile.TemporaryDirectory() as folder:
-                mirrored = Path(folder) / "right_as_left.ply"
-                mirror_left_right(trimesh.load(crop, process=False, force="mesh")).export(mirrored)
-                scan, _ = hard_scan_of(mirrored, f"{subject}_right", "hard", HARD_SEED)
-            scan = mirror_left_right(scan)
+            scan = mirror_left_right(right_ear_scan_as_left(crop, subject, recipe["level"], recipe["seed"]))
         posed = (np.asarray(scan.vertices) @ pose[:3, :3].T + pose[:3, 3]) / 10.0
         WORK.mkdir(parents=True, exist_ok=True)
         trimesh.Trimesh(posed, scan.faces, process=False).export(path)

@@ -39,3 +39,18 @@ def stitch_both_ears(head: trimesh.Trimesh, left_pinna: trimesh.Trimesh, right_p
     mirrored = stitch_left(mirror_left_right(with_left), right_pinna_as_left, gap_mm,
                            f"{head_source} (mirrored for the right ear)", right_source)
     return mirror_left_right(mirrored)
+
+
+def right_ear_scan_as_left(right_crop_path, subject: str, level: str, seed: int) -> trimesh.Trimesh:
+    """The right ear's fixed defective scan as a left ear (mm, head frame mirrored y -> -y): the clean right crop
+    (a file) mirrored and scanned at ``level`` of ppm/data/scan_defects.yaml with ``seed`` mixed with
+    "<subject>_right", a draw of its own beside the left ear's ("<subject>"; ppm.align.defects.hard_scan_of)."""
+    import tempfile  # noqa: PLC0415
+    from pathlib import Path  # noqa: PLC0415
+
+    from ppm.align.defects import hard_scan_of  # noqa: PLC0415
+
+    with tempfile.TemporaryDirectory() as folder:
+        mirrored = Path(folder) / "right_as_left.ply"
+        mirror_left_right(trimesh.load(right_crop_path, process=False, force="mesh")).export(mirrored)
+        return hard_scan_of(mirrored, f"{subject}_right", level, seed)[0]

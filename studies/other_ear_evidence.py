@@ -15,14 +15,12 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-import tempfile
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "studies"))
-
-HARD_SEED = 19  # benchmarks/new_listener.py's draw of the right ear
+sys.path.insert(0, str(ROOT / "benchmarks"))
 
 
 def main() -> None:
@@ -35,10 +33,10 @@ def main() -> None:
 
     from committed import SONICOM, require_workflow_files
     from ppm.align import prepare_target
-    from ppm.align.defects import hard_scan_of
     from ppm.align.detail import personal_detail
     from reporting.stitched_region import seen_by
-    from stitching.both_ears import mirror_left_right
+    from new_listener import evaluation_hard_scan  # benchmarks/: the draw of the right ear the listener gets
+    from stitching.both_ears import mirror_left_right, right_ear_scan_as_left
     from stitching.replace_pinna import under_pinna
 
     base = ROOT / "results" / args.subject / "controls"
@@ -49,12 +47,11 @@ def main() -> None:
     fit = trimesh.load(fit_path, process=False, force="mesh")
     vertices, faces = np.asarray(fit.vertices), np.asarray(fit.faces)
     unseen = truth.points_mm[under_pinna(truth.points_mm, fit) & ~seen_by(scan.vertices, truth.points_mm)]
-    with tempfile.TemporaryDirectory() as folder:
-        mirrored = Path(folder) / "right_as_left.ply"
-        mirror_left_right(trimesh.load(SONICOM / args.subject / "pinna_right_crop.ply", process=False,
-                                       force="mesh")).export(mirrored)
-        others = {"the other ear's hard scan": hard_scan_of(mirrored, f"{args.subject}_right", "hard", HARD_SEED)[0],
-                  "the other ear's clean crop": trimesh.load(mirrored, process=False, force="mesh")}
+    right_crop = SONICOM / args.subject / "pinna_right_crop.ply"
+    recipe = evaluation_hard_scan()
+    others = {"the other ear's hard scan": right_ear_scan_as_left(right_crop, args.subject, recipe["level"],
+                                                                  recipe["seed"]),
+              "the other ear's clean crop": mirror_left_right(trimesh.load(right_crop, process=False, force="mesh"))}
     figures: dict[str, dict] = {"unseen_points": int(len(unseen))}
 
     def measure(name: str, surface: trimesh.Trimesh, covered: np.ndarray | None = None,

@@ -9,6 +9,7 @@ live in ``stitching/data/scan_reconstruction.yaml``.
 from __future__ import annotations
 
 import dataclasses
+import logging
 from functools import lru_cache
 from importlib import resources
 from typing import TYPE_CHECKING
@@ -23,6 +24,8 @@ from .errors import StitchError
 if TYPE_CHECKING:  # the layer's types, for the hints only
     from ppm.align.detail import DetailSettings
     from ppm.align.target import Target
+
+log = logging.getLogger(__name__)
 
 
 @lru_cache(maxsize=1)
@@ -155,5 +158,10 @@ def layer_evidence(scan: Target, detail_settings: DetailSettings) -> Target:
 
     if detail_settings.hole_fill_mm is None:
         return scan
-    fill = hole_fill(scan.mesh, float(detail_settings.hole_fill_mm), source=scan.source)
+    try:
+        fill = hole_fill(scan.mesh, float(detail_settings.hole_fill_mm), source=scan.source)
+    except StitchError as error:  # the fill is extra evidence: without it the layer still has the scan
+        log.warning("%s: no reconstruction's fill for the personal-detail layer (%s); the scan alone is its "
+                    "evidence", scan.source, error)
+        return dataclasses.replace(scan, warnings=scan.warnings + (f"no hole fill: {error}",))
     return joined_evidence(scan, fill)

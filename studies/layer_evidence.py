@@ -13,7 +13,9 @@ the packaged layer towards the reconstruction trimmed to ``--trim-mm`` of the pr
 ear), and variants of its settings (``ppm.align.detail.DetailSettings``); last, the layer towards the
 reconstruction trimmed 4 mm from the whole scan, and towards the whole scan joined with the reconstruction's fill of its
 holes (its faces farther than 1 or 2 mm from every scan point), each with and without the folds smoothed
-(``fold_smoothing_rounds``). Last line: JSON of every surface's figures.
+(``fold_smoothing_rounds``); every candidate from the layer's settings before 2026-12-06 (``BEFORE``). Last, the
+packaged layer now (the scan joined with its reconstruction's fill of its holes, ``hole_fill_mm``, folds smoothed).
+Last line: JSON of every surface's figures.
 """
 from __future__ import annotations
 
@@ -25,6 +27,10 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "studies"))
+
+#: The layer's settings before 2026-12-06 (the folds halved only, the scan alone as evidence): every candidate below
+#: starts from them, as when it was measured; the last row is the packaged layer now.
+BEFORE = {"fold_smoothing_rounds": 0, "hole_fill_mm": None}
 
 #: Settings tried with the reconstruction as evidence (besides the packaged ones).
 VARIANTS = {
@@ -61,7 +67,7 @@ def main() -> None:
     from ppm.align.detail import DetailSettings, personal_detail
     from ppm.align.target import Target
     from reporting.stitched_region import region_distances, seen_by
-    from stitching.reconstruction import poisson_surface, trimmed_near
+    from stitching.reconstruction import layer_evidence, poisson_surface, trimmed_near
     from stitching.replace_pinna import under_pinna
 
     base = ROOT / "results" / args.subject / "controls"
@@ -86,6 +92,9 @@ def main() -> None:
         print(f"{args.subject} {name:44s} " + "  ".join(f"{key} {m:.3f}/{p:.3f}"
                                                        for key, (m, p) in figures[name].items()), flush=True)
 
+    def before(**overrides) -> DetailSettings:
+        return DetailSettings.packaged(**{**BEFORE, **overrides})
+
     def as_target(surface: trimesh.Trimesh) -> Target:
         mesh = trimesh.Trimesh(surface.vertices, surface.faces, process=False)
         return Target(np.asarray(mesh.vertices), np.asarray(mesh.vertex_normals), mesh, "screened Poisson")
@@ -95,29 +104,29 @@ def main() -> None:
     measure("PPM (ppm_hard)", vertices, faces)
     measure("screened Poisson, trimmed 4 mm", reconstruction.surface.vertices, reconstruction.surface.faces)
     measure("layer towards the segmented scan (before)",
-            vertices + personal_detail(vertices, faces, hard).displacement_mm, faces)
+            vertices + personal_detail(vertices, faces, hard, before()).displacement_mm, faces)
     # the workflow's evidence since 2026-12-06: the whole scan, not only the pinna the segmentation cut out for the
     # fit (which left out the lobule and the skin ring: half of the hard scans' points)
     whole = prepare_target(scan_path, side="left", segment=False)
     print(f"{args.subject}: the fit's segmented target holds {len(hard.points_mm)} points, the whole scan "
           f"{len(whole.points_mm)}")
-    measure("layer towards the whole scan (packaged)",
-            vertices + personal_detail(vertices, faces, whole).displacement_mm, faces)
+    measure("layer towards the whole scan (packaged before)",
+            vertices + personal_detail(vertices, faces, whole, before()).displacement_mm, faces)
     for name, overrides in WHOLE_SCAN_VARIANTS.items():
-        layer = personal_detail(vertices, faces, whole, DetailSettings.packaged(**overrides))
+        layer = personal_detail(vertices, faces, whole, before(**overrides))
         measure(f"layer towards the whole scan, {name}", vertices + layer.displacement_mm, faces)
     evidence = as_target(trimmed_near(reconstruction.closed, hard.points_mm, args.trim_mm))
     measure(f"layer towards Poisson ({args.trim_mm:g} mm)",
-            vertices + personal_detail(vertices, faces, evidence).displacement_mm, faces)
+            vertices + personal_detail(vertices, faces, evidence, before()).displacement_mm, faces)
     for name, overrides in VARIANTS.items():
-        layer = personal_detail(vertices, faces, evidence, DetailSettings.packaged(**overrides))
+        layer = personal_detail(vertices, faces, evidence, before(**overrides))
         measure(f"layer towards Poisson, {name}", vertices + layer.displacement_mm, faces)
     # the reconstruction as evidence the way the workflow takes the scan now: trimmed 4 mm from the whole scan (as the
     # baseline is), with and without the folds smoothed
     trimmed_whole = trimmed_near(reconstruction.closed, whole.points_mm, 4.0)
     near_whole = as_target(trimmed_whole)
     for name, overrides in {"": {}, ", folds smoothed": {"fold_smoothing_rounds": 20}}.items():
-        layer = personal_detail(vertices, faces, near_whole, DetailSettings.packaged(**overrides))
+        layer = personal_detail(vertices, faces, near_whole, before(**overrides))
         measure(f"layer towards Poisson 4 mm of the whole scan{name}", vertices + layer.displacement_mm, faces)
     # the whole scan with the reconstruction's fill of its holes: the reconstruction's faces (trimmed 4 mm from the
     # scan) farther than ``gap`` from every scan point, joined to the scan, so the raw points speak where there are
@@ -131,8 +140,13 @@ def main() -> None:
         fill.remove_unreferenced_vertices()
         joined = as_target(trimesh.util.concatenate([whole.mesh, fill]))
         for name, overrides in {"": {}, ", folds smoothed": {"fold_smoothing_rounds": 20}}.items():
-            layer = personal_detail(vertices, faces, joined, DetailSettings.packaged(**overrides))
+            layer = personal_detail(vertices, faces, joined, before(**overrides))
             measure(f"layer towards the scan + fill beyond {gap:g} mm{name}", vertices + layer.displacement_mm, faces)
+    # the packaged layer now: the whole scan joined with its reconstruction's fill of the holes the scan surrounds
+    # (stitching.reconstruction.layer_evidence), the folds smoothed
+    packaged = DetailSettings.packaged()
+    layer = personal_detail(vertices, faces, layer_evidence(whole, packaged), packaged)
+    measure("packaged layer now (scan + hole fill, folds smoothed)", vertices + layer.displacement_mm, faces)
     print(json.dumps({"subject": args.subject, "trim_mm": args.trim_mm, "surfaces": figures}))
 
 

@@ -226,7 +226,7 @@ def test_the_layer_s_evidence_takes_a_reconstruction_s_fill_of_a_hole_and_not_it
     scan = add_scan_defects(truth, np.random.default_rng(3), noise_mm=0.02, holes=1, hole_radius_mm=7.0,
                             outlier_share=0.0, hole_centres=[centre])
     target = target_from_mesh(scan, "PPM 1 mm out, a hole deep in the pinna")
-    assert layer_evidence(target, DetailSettings.packaged()) is target  # hole_fill_mm null: the scan alone
+    assert layer_evidence(target, DetailSettings.packaged(hole_fill_mm=None)) is target  # the scan alone
     fill = hole_fill(scan, 2.0)
     assert len(fill.faces) > 20
     assert cKDTree(scan.vertices).query(fill.triangles_center)[0].min() > 2.0

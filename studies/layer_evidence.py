@@ -147,7 +147,29 @@ def main() -> None:
     packaged = DetailSettings.packaged()
     layer = personal_detail(vertices, faces, layer_evidence(whole, packaged), packaged)
     measure("packaged layer now (scan + hole fill, folds smoothed)", vertices + layer.displacement_mm, faces)
-    print(json.dumps({"subject": args.subject, "trim_mm": args.trim_mm, "surfaces": figures}))
+    # where each surface's surface -> truth tail lies: its vertices in the region by their distance to the nearest point
+    # of the whole scan (share of the vertices, median and share beyond the reconstruction's p95)
+    from ppm.align.report import reverse_distances_mm  # noqa: PLC0415
+
+    bands = ((0.0, 2.0), (2.0, 4.0), (4.0, np.inf))
+    tail = figures["screened Poisson, trimmed 4 mm"]["surface_to_truth"][1]
+    by_band: dict[str, list] = {}
+    for name, surface_vertices in (("packaged layer now", vertices + layer.displacement_mm),
+                                   ("screened Poisson, trimmed 4 mm", np.asarray(reconstruction.surface.vertices))):
+        back, counts = reverse_distances_mm(truth, surface_vertices, boundary_margin_mm=1.0)
+        counts &= under_pinna(surface_vertices, fit)
+        to_scan = near_scan.query(surface_vertices[counts])[0]
+        rows = []
+        for low, high in bands:
+            band = (to_scan >= low) & (to_scan < high)
+            rows.append([low, high, round(float(band.mean()), 3),
+                         round(float(np.median(back[counts][band])), 3) if band.any() else None,
+                         round(float(np.mean(back[counts][band] > tail)), 3) if band.any() else None])
+            print(f"{args.subject} {name}: vertices {low:g}-{high:g} mm from the scan: {100 * rows[-1][2]:.1f} %, "
+                  f"surface -> truth median {rows[-1][3]} mm, {100 * (rows[-1][4] or 0):.0f} % beyond the "
+                  f"reconstruction's p95 ({tail:.2f} mm)")
+        by_band[name] = rows
+    print(json.dumps({"subject": args.subject, "by_scan_distance": by_band, "trim_mm": args.trim_mm, "surfaces": figures}))
 
 
 if __name__ == "__main__":

@@ -162,7 +162,7 @@ def main() -> None:
         rows = []
         for low, high in bands:
             band = (to_scan >= low) & (to_scan < high)
-            rows.append([low, high, round(float(band.mean()), 3),
+            rows.append([low, high if np.isfinite(high) else None, round(float(band.mean()), 3),
                          round(float(np.median(back[counts][band])), 3) if band.any() else None,
                          round(float(np.mean(back[counts][band] > tail)), 3) if band.any() else None])
             print(f"{args.subject} {name}: vertices {low:g}-{high:g} mm from the scan: {100 * rows[-1][2]:.1f} %, "

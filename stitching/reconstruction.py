@@ -109,18 +109,18 @@ def trimmed_near(surface: trimesh.Trimesh, points: np.ndarray, trim_mm: float, s
     return out
 
 
-def enclosed_by(points_mm: np.ndarray, centres_mm: np.ndarray, normals: np.ndarray, radius_mm: float,
+def enclosed_by(scan_points: cKDTree, centres_mm: np.ndarray, normals: np.ndarray, radius_mm: float,
                 open_angle_deg: float) -> np.ndarray:
-    """Per centre (mm, with its unit normal), whether the ``points_mm`` within ``radius_mm`` surround it in its
-    tangent plane: no angular gap between them wider than ``open_angle_deg`` as seen from the centre. A hole in a
-    scan is surrounded by scan; what a reconstruction adds beyond the scan's outer edge (where it balloons round
-    the crop) has scan on one side only."""
-    tree = cKDTree(np.asarray(points_mm, np.float64))
+    """Per centre (mm, with its unit normal), whether the points of ``scan_points`` (a KD-tree of the scan's
+    vertices, mm) within ``radius_mm`` surround it in its tangent plane: no angular gap between them wider than
+    ``open_angle_deg`` as seen from the centre. A hole in a scan is surrounded by scan; what a reconstruction adds
+    beyond the scan's outer edge (where it balloons round the crop) has scan on one side only."""
+    points = scan_points.data
     out = np.zeros(len(centres_mm), dtype=bool)
-    for index, group in enumerate(tree.query_ball_point(np.asarray(centres_mm, np.float64), radius_mm)):
+    for index, group in enumerate(scan_points.query_ball_point(np.asarray(centres_mm, np.float64), radius_mm)):
         if len(group) < 3:
             continue
-        offsets = np.asarray(points_mm)[group] - centres_mm[index]
+        offsets = points[group] - centres_mm[index]
         normal = normals[index]
         in_plane = offsets - np.outer(offsets @ normal, normal)
         axis = in_plane[np.argmax(np.linalg.norm(in_plane, axis=1))]
@@ -140,9 +140,9 @@ def hole_fill(scan: trimesh.Trimesh, beyond_mm: float, settings: dict | None = N
     May be empty (a scan without holes)."""
     settings = settings or reconstruction_settings()
     surface = poisson_surface(scan, settings, source).surface
-    vertices = np.asarray(scan.vertices)
-    far = np.flatnonzero(cKDTree(vertices).query(surface.triangles_center)[0] > beyond_mm)
-    enclosed = enclosed_by(vertices, surface.triangles_center[far], surface.face_normals[far],
+    scan_points = cKDTree(np.asarray(scan.vertices, np.float64))
+    far = np.flatnonzero(scan_points.query(surface.triangles_center)[0] > beyond_mm)
+    enclosed = enclosed_by(scan_points, surface.triangles_center[far], surface.face_normals[far],
                            float(settings["fill"]["surround_radius_mm"]), float(settings["fill"]["open_angle_deg"]))
     fill = trimesh.Trimesh(surface.vertices, surface.faces[far[enclosed]], process=False)
     fill.remove_unreferenced_vertices()

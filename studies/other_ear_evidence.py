@@ -33,7 +33,8 @@ def main() -> None:
 
     from committed import SONICOM, require_workflow_files
     from ppm.align import prepare_target
-    from ppm.align.detail import personal_detail
+    from layer_evidence import BEFORE
+    from ppm.align.detail import DetailSettings, personal_detail
     from reporting.stitched_region import seen_by
     from new_listener import evaluation_hard_scan  # benchmarks/: the draw of the right ear the listener gets
     from stitching.both_ears import mirror_left_right, right_ear_scan_as_left
@@ -76,7 +77,8 @@ def main() -> None:
     print(f"{args.subject}: {len(unseen)} truth points of the stitched region the left hard scan never saw")
     measure("PPM (ppm_hard)", fit)
     whole = prepare_target(scan_path, side="left", segment=False)
-    layered = vertices + personal_detail(vertices, faces, whole).displacement_mm
+    # the layer as this study measured it (before the hole fill and fold smoothing became its defaults)
+    layered = vertices + personal_detail(vertices, faces, whole, DetailSettings.packaged(**BEFORE)).displacement_mm
     layer_distance = measure("layer (whole scan)", trimesh.Trimesh(layered, faces, process=False))
     for name, other in others.items():
         moved, _, _ = trimesh.registration.icp(np.asarray(other.vertices), np.asarray(scan.vertices),

@@ -53,6 +53,7 @@ from ppm.align.pose import apply_similarity
 from ppm.align.report import one_sided_distances_mm, reverse_distances_mm
 from ppm.align.nricp import nricp_fit as fit_nricp
 from ppm.align.target import Target, surface_without_outliers
+from ppm.align.widen import refit_widened
 from ppm.model import PinnaModel
 from ppm.template.register import NRICP_STEPS
 from reporting.stitched_region import region_distances, seen_by
@@ -102,6 +103,8 @@ def fit_file(model: PinnaModel, mesh: trimesh.Trimesh, folder: Path, name: str, 
         result, target = align_any_pose(model, target, settings)
     else:
         result = align(model, target, settings)
+    # as the workflow: fitted again on the scan around the first fit where the segmentation left part of it out
+    result, target, _ = refit_widened(model, target, result, settings)
     return target, result, time.perf_counter() - start
 
 

@@ -60,6 +60,7 @@ def _align(args: argparse.Namespace) -> None:
     from .align import AlignSettings, align, prepare_target
     from .align.pose_by_fit import align_any_pose, pose_summary
     from .align.report import write_alignment
+    from .align.widen import refit_widened
 
     model = _model(args)
     target = prepare_target(args.target, side=args.side, margin_mm=args.margin_mm, segment=not args.no_segment,
@@ -68,7 +69,9 @@ def _align(args: argparse.Namespace) -> None:
         result, target = align_any_pose(model, target, AlignSettings())
     else:
         result = align(model, target, AlignSettings())
-    summary = write_alignment(args.out, model, target, result, extra=pose_summary(target))
+    result, target, widening = refit_widened(model, target, result, AlignSettings())
+    summary = write_alignment(args.out, model, target, result,
+                              extra={"target_widening": widening, **pose_summary(target)})
     print(json.dumps(summary["distance_target_to_ppm"]))
     for warning in summary["warnings"]:
         print(f"ppm: warning: {warning}", file=sys.stderr)

@@ -8,6 +8,7 @@ rule prepare_target:
     output:
         target="results/{subject}/target/pinna_target.ply",
         report="results/{subject}/target/target.json",
+        scan="results/{subject}/target/scan_in_frame.ply",
     log:
         "logs/align/prepare_target/{subject}.log",
     benchmark:
@@ -26,6 +27,7 @@ rule align_ppm:
     input:
         target="results/{subject}/target/pinna_target.ply",
         report="results/{subject}/target/target.json",
+        scan="results/{subject}/target/scan_in_frame.ply",
         template=align_template,
     output:
         parameters_csv="results/{subject}/align/parameters.csv",

@@ -103,6 +103,7 @@ rule hard_target:
     output:
         target="results/{subject}/controls/hard/target/pinna_target.ply",
         report="results/{subject}/controls/hard/target/target.json",
+        scan="results/{subject}/controls/hard/target/scan_in_frame.ply",
     log:
         "logs/controls/hard_target/{subject}.log",
     benchmark:
@@ -120,6 +121,7 @@ rule hard_target:
 rule align_hard:
     input:
         target="results/{subject}/controls/hard/target/pinna_target.ply",
+        scan="results/{subject}/controls/hard/target/scan_in_frame.ply",
         template=align_template,
     output:
         parameters_csv="results/{subject}/controls/ppm_hard/align/parameters.csv",

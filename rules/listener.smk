@@ -55,6 +55,7 @@ rule listener_target:
     output:
         target="results/listeners/{listener}/target/{side}/pinna_target.ply",
         report="results/listeners/{listener}/target/{side}/target.json",
+        scan="results/listeners/{listener}/target/{side}/scan_in_frame.ply",
     log:
         "logs/listener/target/{listener}_{side}.log",
     benchmark:
@@ -73,6 +74,7 @@ rule listener_target:
 rule listener_align:
     input:
         target="results/listeners/{listener}/target/{side}/pinna_target.ply",
+        scan="results/listeners/{listener}/target/{side}/scan_in_frame.ply",
         template=lambda wc: RUN.listener_template(),
     output:
         parameters_csv="results/listeners/{listener}/align/{side}/parameters.csv",

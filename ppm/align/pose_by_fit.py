@@ -36,7 +36,8 @@ def target_in_alternative_pose(target, alternative: dict):
     relative = np.asarray(alternative["matrix"]) @ np.linalg.inv(np.asarray(target.pose["matrix"]))
     moved = target_from_mesh(apply_similarity(target.mesh, relative), target.source)
     pose = {**target.pose, "matrix": alternative["matrix"], "mirrored": alternative["mirrored"], "alternatives": []}
-    return dataclasses.replace(moved, warnings=target.warnings, pose=pose)
+    scan = None if target.scan is None else apply_similarity(target.scan, relative)
+    return dataclasses.replace(moved, warnings=target.warnings, pose=pose, scan=scan)
 
 
 def align_any_pose(model, target, settings=None):

@@ -45,6 +45,9 @@ class Target:
     pose : dict or None
         For a scan given in any pose: how it was brought into the project frame (unit, mirrored, the
         (4, 4) similarity scan -> project frame as nested lists, confidence); None for a project-frame scan.
+    scan : trimesh.Trimesh or None
+        The whole scan the pinna region was cut from, in the same frame (mm, project frame, left ear): what
+        :mod:`ppm.align.widen` fits again on when the segmentation left out part of the pinna. None when not kept.
     """
 
     points_mm: np.ndarray
@@ -53,6 +56,7 @@ class Target:
     source: str
     warnings: tuple[str, ...] = ()
     pose: dict | None = None
+    scan: trimesh.Trimesh | None = None
 
 
 def remove_outliers(points_mm: np.ndarray, neighbours: int = 8) -> np.ndarray:
@@ -128,13 +132,14 @@ def prepare_target(path: str | os.PathLike, side: str = "left", margin_mm: float
     else:
         raise PpmError(f"scan_pose must be 'project_frame' or 'any', got {scan_pose!r}")
     mesh.remove_unreferenced_vertices()
+    whole = mesh
     if segment:
         try:
             region = pinna_region(mesh, margin_mm=margin_mm)
         except PpmError as exc:
             raise PpmError(f"{path}: {exc}") from exc
         mesh = crop_to_region(mesh, region)
-    target = target_from_mesh(mesh, str(path))
+    target = dataclasses.replace(target_from_mesh(mesh, str(path)), scan=whole)
     if pose is None:
         return target
     from .any_pose import side_name  # noqa: PLC0415
@@ -183,9 +188,11 @@ def target_from_mesh(mesh: trimesh.Trimesh, source: str) -> Target:
     return Target(points, normals[keep], mesh, source, tuple(warnings))
 
 
-def write_target(target: Target, mesh_path: str | os.PathLike, report_path: str | os.PathLike) -> dict:
+def write_target(target: Target, mesh_path: str | os.PathLike, report_path: str | os.PathLike,
+                 scan_path: str | os.PathLike | None = None) -> dict:
     """Write the prepared pinna surface (mm, left ear, project frame; outliers still in the mesh, they are
-    found again when it is read) and a JSON report of the preparation. Both atomically."""
+    found again when it is read), a JSON report of the preparation and, to ``scan_path``, the whole scan it was cut
+    from in the same frame (:attr:`Target.scan`; the pinna surface where none is kept). All atomically."""
     import json  # noqa: PLC0415
 
     from core.atomic import write_text_atomic  # noqa: PLC0415
@@ -197,5 +204,14 @@ def write_target(target: Target, mesh_path: str | os.PathLike, report_path: str 
     if target.pose is not None:
         report["pose"] = target.pose
     write_mesh(mesh_path, target.mesh.vertices, target.mesh.faces)
+    if scan_path is not None:
+        whole = target.scan if target.scan is not None else target.mesh
+        write_mesh(scan_path, whole.vertices, whole.faces)
     write_text_atomic(report_path, json.dumps(report, indent=2) + "\n")
     return report
+
+
+def with_scan(target: Target, scan_path: str | os.PathLike) -> Target:
+    """``target`` with :attr:`Target.scan` read from ``scan_path`` (written by :func:`write_target`: mm, project
+    frame, left ear already, so nothing is mirrored or moved)."""
+    return dataclasses.replace(target, scan=load_left_pinna(scan_path, "left"))

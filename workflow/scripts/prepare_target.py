@@ -13,4 +13,5 @@ from ppm.align.target import prepare_target, write_target  # noqa: E402
 target = prepare_target(snakemake.input.scan, side=snakemake.params.get("side", "left"),  # noqa: F821
                         margin_mm=snakemake.params.settings["target_margin_mm"],  # noqa: F821
                         scan_pose=snakemake.params.settings.get("scan_pose", "project_frame"))  # noqa: F821
-write_target(target, snakemake.output.target, snakemake.output.report)  # noqa: F821
+write_target(target, snakemake.output.target, snakemake.output.report,  # noqa: F821
+             snakemake.output.get("scan"))  # noqa: F821  (the whole scan in the same frame, for ppm.align.widen)

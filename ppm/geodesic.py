@@ -26,6 +26,18 @@ def distance_from(graph: csr_matrix, sources: np.ndarray) -> np.ndarray:
     return dijkstra(graph, directed=False, indices=np.asarray(sources, dtype=np.int64), min_only=True)
 
 
+def rim_vertices(faces: np.ndarray) -> np.ndarray:
+    """Indices of the vertices on the mesh's open boundary (for a PPM: the skin ring's rim, where the stitch joins)."""
+    edges = np.sort(np.asarray(faces)[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
+    unique, counts = np.unique(edges, axis=0, return_counts=True)
+    return np.unique(unique[counts == 1])
+
+
+def distance_from_rim_mm(vertices_mm: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """(n,) geodesic distance in mm of every vertex from the mesh's open boundary (:func:`rim_vertices`)."""
+    return distance_from(edge_graph(np.asarray(vertices_mm), np.asarray(faces)), rim_vertices(faces))
+
+
 def path_through(graph: csr_matrix, waypoints: list[int]) -> np.ndarray:
     """Vertex ids of the shortest edge path visiting `waypoints` in order (duplicates removed)."""
     path: list[int] = [int(waypoints[0])]

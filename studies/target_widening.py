@@ -32,10 +32,10 @@ def main() -> None:
     import numpy as np
     import trimesh
 
-    from committed import SONICOM
-    from ppm.align import align, prepare_target
     from scipy.spatial import cKDTree
 
+    from committed import SONICOM
+    from ppm.align import align, prepare_target
     from ppm.align.widen import SAME_POINT_MM, WideningSettings, left_out_share, widened_target
     from ppm.model import PinnaModel
     from reporting.pinna_regions import landmark_positions_mm, label_points

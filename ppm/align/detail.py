@@ -23,6 +23,7 @@ from scipy.sparse.csgraph import dijkstra
 from scipy.spatial import cKDTree
 
 from ..errors import PpmError
+from ..geodesic import rim_vertices  # noqa: F401  (the layer holds the rim; tests import it from here)
 from ..model import DETAIL_KEY  # the shape key that holds the layer in a .blend
 from .report import boundary_samples
 from .target import Target, surface_without_outliers
@@ -109,13 +110,6 @@ def joined_evidence(scan: Target, fill: trimesh.Trimesh) -> Target:
                                        trimesh.Trimesh(fill.vertices, fill.faces, process=False)])
     return Target(np.asarray(joined.vertices), np.asarray(joined.vertex_normals), joined,
                   f"{scan.source} with its reconstruction's fill of {len(fill.faces)} faces", scan.warnings, scan.pose)
-
-
-def rim_vertices(faces: np.ndarray) -> np.ndarray:
-    """Indices of the vertices on the mesh's open boundary (the pinna's skin-ring rim)."""
-    edges = np.sort(np.asarray(faces)[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
-    unique, counts = np.unique(edges, axis=0, return_counts=True)
-    return np.unique(unique[counts == 1])
 
 
 def _edges(faces: np.ndarray) -> np.ndarray:

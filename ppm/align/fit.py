@@ -33,11 +33,10 @@ import logging
 import time
 
 import numpy as np
-import trimesh
 from scipy.spatial import cKDTree
 from trimesh.registration import icp
 
-from ..geodesic import distance_from, edge_graph
+from ..geodesic import distance_from_rim_mm
 from ..model import PinnaModel
 from ..parameters import PinnaParameters, bounds, parameter_specs
 from .pose import parent_pose_from_rigid, rotation_zyx
@@ -126,11 +125,8 @@ class _Problem:
         self.all_normals = target.normals
         self.surface = OneRingSurface(model.faces, len(model.template_vertices_mm))
         # template vertices well inside the outer skin ring take part in the model -> target term
-        rest = model.template_vertices_mm
-        graph = edge_graph(rest, model.faces)
-        edges = trimesh.Trimesh(rest, model.faces, process=False).edges_sorted
-        boundary = np.unique(edges[trimesh.grouping.group_rows(edges, require_count=1)])
-        self.inner = np.flatnonzero(distance_from(graph, boundary) > settings.ring_exclusion_mm)
+        self.inner = np.flatnonzero(distance_from_rim_mm(model.template_vertices_mm, model.faces)
+                                    > settings.ring_exclusion_mm)
         specs = parameter_specs()
         self.default = np.array([s.default for s in specs])
         self.lower, self.upper = bounds()

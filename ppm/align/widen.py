@@ -21,7 +21,7 @@ import yaml
 from scipy.spatial import cKDTree
 
 from ..errors import PpmError
-from ..geodesic import distance_from, edge_graph
+from ..geodesic import distance_from_rim_mm
 from ..template.segment import crop_to_region
 from .fit import AlignmentResult, AlignSettings, align
 from .target import Target, target_from_mesh
@@ -64,14 +64,6 @@ def widened_target(target: Target, vertices_mm: np.ndarray, faces: np.ndarray, r
         log.warning("%s: no wider target (%s)", target.source, error)
         return None
     return dataclasses.replace(widened, warnings=target.warnings, pose=target.pose, scan=target.scan)
-
-
-def distance_from_rim_mm(vertices_mm: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """Per vertex of the fitted PPM, the geodesic distance (mm, along its edges) from its open rim (where the skin
-    ring ends)."""
-    edges = np.sort(np.vstack([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), axis=1)
-    rim = np.unique(edges[trimesh.grouping.group_rows(edges, require_count=1)])
-    return distance_from(edge_graph(np.asarray(vertices_mm), np.asarray(faces)), rim)
 
 
 def left_out_share(target: Target, widened: Target, vertices_mm: np.ndarray, faces: np.ndarray,

@@ -12,16 +12,18 @@ and its head as scanned solved the same way (listener.scanned_head), then judged
   (reporting.paper_protocol.both_ears_protocol), with the split by sagittal plane;
 - the second line, the evaluation's earlier protocol: the dataset's reference HRIRs are the template;
 - with --hard, the listener <subject>_hard: the same posed head, both ears fitted to hard scans given as its
-  separate ear scans (independent fixed draws), judged against <subject>_new's head as scanned.
+  separate ear scans (independent fixed draws), judged against <subject>_new's head as scanned;
+- with --hard --no-layer, the listener <subject>_hard_ppm: the same hard scans and fits, the PPM without the
+  personal-detail layer, judged the same way (whether the layer brings the hard listener nearer its own ears).
 
 The steps are kept in benchmarks/results/new_listener/steps_dataset_grid as they finish, so that a run stopped on the
 way (or a fresh clone) continues from them. The posed head and the run's outputs stay in results/new_listener/ and
 results/listeners/ (not committed: the head is the dataset's).
 
-Run: .venv/bin/python benchmarks/new_listener.py [--subject P143] [--seed 7] [--cores 2] [--hard]
+Run: .venv/bin/python benchmarks/new_listener.py [--subject P143] [--seed 7] [--cores 2] [--hard [--no-layer]]
      [--until remesh/validation.json] [--report-only]
 Last line: JSON with paper_delta_qe_pp, paper_delta_pe_deg, paper_left_delta_qe_pp, paper_right_delta_qe_pp,
-hard_paper_delta_qe_pp, hard_paper_delta_pe_deg, coverage_left, coverage_right, directions_compared,
+hard_paper_delta_qe_pp, hard_paper_delta_pe_deg, hard_ppm_paper_delta_qe_pp, hard_ppm_paper_delta_pe_deg, coverage_left, coverage_right, directions_compared,
 reference_cpu_hours, cpu_hours (null where a solve has not finished), the frame and fit figures, the dataset-reference
 line (delta_qe_pp, delta_pe_deg, <side>_ear_only_delta_qe_pp) and the split of another person's set by ear and plane.
 """
@@ -112,19 +114,27 @@ def snakemake(args: list[str]) -> None:
     subprocess.run(command, cwd=ROOT, check=True)
 
 
-def run(subject: str, seed: int, cores: int, targets: list[str] | None = None, hard: bool = False) -> None:
+def listener_name(subject: str, hard: bool = False, layer: bool = True) -> str:
+    """The listener's name: <subject>_new (the clean head), <subject>_hard (hard ear scans), <subject>_hard_ppm
+    (hard ear scans, no personal-detail layer)."""
+    return f"{subject}_{'new' if not hard else 'hard' if layer else 'hard_ppm'}"
+
+
+def run(subject: str, seed: int, cores: int, targets: list[str] | None = None, hard: bool = False,
+        layer: bool = True) -> None:
     """The template without the subject, then the listener's whole run (NumCalc), or only ``targets``; with
-    ``hard`` the listener whose ear scans are the hard ones (<subject>_hard)."""
-    config = write_config(subject, seed, hard)
+    ``hard`` the listener whose ear scans are the hard ones (<subject>_hard; without ``layer`` <subject>_hard_ppm)."""
+    config = write_config(subject, seed, hard, layer)
     snakemake(["--cores", str(cores), "--configfile", str(config.relative_to(ROOT)), "--rerun-triggers", "mtime",
                "--rerun-incomplete",
                *(["--nolock"] if hard else []), *(["--", *targets] if targets else [])])
 
 
-def write_config(subject: str, seed: int, hard: bool = False) -> Path:
+def write_config(subject: str, seed: int, hard: bool = False, layer: bool = True) -> Path:
     """The run's config (results/new_listener/config.yaml; config_hard.yaml for the listener <subject>_hard, whose
     ears are fitted to their hard scans, given as the listener's separate ear scans, and whose reference is
-    <subject>_new's head as scanned), the template without the subject built first."""
+    <subject>_new's head as scanned; config_hard_ppm.yaml for the same without the layer), the template without the
+    subject built first."""
     head, pose = posed_head(subject, seed)
     template = f"results/templates/without_{subject}/template_left.ply"
     if not (ROOT / template).is_file():
@@ -132,12 +142,13 @@ def write_config(subject: str, seed: int, hard: bool = False) -> Path:
     listener = {"name": f"{subject}_new", "head": str(head.relative_to(ROOT))}
     if hard:
         ears = hard_ear_scans(subject, seed, pose)
-        listener.update(name=f"{subject}_hard", **{f"{side}_ear": str(path.relative_to(ROOT))
-                                                   for side, path in ears.items()})
-    config = WORK / ("config_hard.yaml" if hard else "config.yaml")
+        listener.update(name=listener_name(subject, hard, layer), **{f"{side}_ear": str(path.relative_to(ROOT))
+                                                                     for side, path in ears.items()})
+    kind = listener_name(subject, hard, layer).removeprefix(f"{subject}_")
+    config = WORK / ("config.yaml" if kind == "new" else f"config_{kind}.yaml")
     config.write_text(json.dumps({
         "listeners": [listener],
-        "listener": {"template": str(Path(template).parent), "comparison_sets": [], "personal_detail": True,
+        "listener": {"template": str(Path(template).parent), "comparison_sets": [], "personal_detail": layer,
                      "scanned_head": not hard, "dataset_grid": str(SONICOM / subject / DATASET_SOFA)},
         "hrtf": {"enabled": True, "solver": "numcalc", "frequencies_hz": "evaluation",
                  "step_store": str(STORE.relative_to(ROOT))},
@@ -249,7 +260,8 @@ def report(subject: str, seed: int) -> dict:
     base = ROOT / "results" / "listeners" / f"{subject}_new"
     summary: dict = {key: None for key in ("paper_delta_qe_pp", "paper_delta_pe_deg", "paper_left_delta_qe_pp",
                                            "paper_right_delta_qe_pp", "hard_paper_delta_qe_pp",
-                                           "hard_paper_delta_pe_deg", "coverage_left", "coverage_right",
+                                           "hard_paper_delta_pe_deg", "hard_ppm_paper_delta_qe_pp",
+                                           "hard_ppm_paper_delta_pe_deg", "coverage_left", "coverage_right",
                                            "directions_compared", "delta_qe_pp", "delta_pe_deg")}
     summary.update(fit_figures(base, pose))
     personal_cpu, ears = store_cpu(STORE / "listeners" / f"{subject}_new" / "personal")
@@ -286,17 +298,24 @@ def report(subject: str, seed: int) -> dict:
     # the same split for another person's whole set (a dataset subject's HRIRs heard with this subject's): whether
     # both ears together costing more than the two alone added is the model's, not the pipeline's
     summary["other_person_ears_gap_by_plane"] = other_person_gap(subject)
-    hard_base = ROOT / "results" / "listeners" / f"{subject}_hard"
-    hard_cpu, _ = store_cpu(STORE / "listeners" / f"{subject}_hard" / "personal")
-    summary["hard_cpu_hours"] = round(hard_cpu, 3)
-    summary.update(ear_figures(hard_base, "hard_"))
-    hard = hard_base / "hrtf" / "personal" / "HRIR.sofa"
-    if hard.is_file() and scanned.is_file():
-        judged = paper_line(hard, scanned, dataset)
-        summary.update(hard_paper_delta_qe_pp=round(judged["both"]["delta_qe_pp"], 3),
-                       hard_paper_delta_pe_deg=round(judged["both"]["delta_pe_deg"], 3),
-                       hard_paper_left_delta_qe_pp=round(judged["left"]["delta_qe_pp"], 3),
-                       hard_paper_right_delta_qe_pp=round(judged["right"]["delta_qe_pp"], 3))
+    # the hard listener, with the layer (hard_) and without it (hard_ppm_), judged against the same head as scanned
+    for kind in ("hard", "hard_ppm"):
+        base_kind = ROOT / "results" / "listeners" / f"{subject}_{kind}"
+        kind_cpu, _ = store_cpu(STORE / "listeners" / f"{subject}_{kind}" / "personal")
+        summary[f"{kind}_cpu_hours"] = round(kind_cpu, 3)
+        summary.update(ear_figures(base_kind, f"{kind}_"))
+        solved = base_kind / "hrtf" / "personal" / "HRIR.sofa"
+        if solved.is_file() and scanned.is_file():
+            judged = paper_line(solved, scanned, dataset)
+            summary.update({f"{kind}_paper_delta_qe_pp": round(judged["both"]["delta_qe_pp"], 3),
+                            f"{kind}_paper_delta_pe_deg": round(judged["both"]["delta_pe_deg"], 3),
+                            f"{kind}_paper_left_delta_qe_pp": round(judged["left"]["delta_qe_pp"], 3),
+                            f"{kind}_paper_right_delta_qe_pp": round(judged["right"]["delta_qe_pp"], 3)})
+    if summary.get("hard_ppm_paper_delta_qe_pp") is not None and summary.get("hard_paper_delta_qe_pp") is not None:
+        # the layer brings the hard listener nearer its own ears when both |delta QE| and |delta PE| are smaller
+        summary["hard_layer_nearer"] = bool(
+            abs(summary["hard_paper_delta_qe_pp"]) < abs(summary["hard_ppm_paper_delta_qe_pp"])
+            and abs(summary["hard_paper_delta_pe_deg"]) < abs(summary["hard_ppm_paper_delta_pe_deg"]))
     print(f"{subject} as a new listener: {json.dumps({k: v for k, v in summary.items() if not isinstance(v, dict)})}",
           flush=True)
     if summary.get("paper_delta_qe_pp") is not None:
@@ -320,13 +339,18 @@ def main() -> None:
     parser.add_argument("--report-only", action="store_true", help="judge what has been run so far")
     parser.add_argument("--hard", action="store_true",
                         help="run the listener <subject>_hard (both ears fitted to hard scans) instead")
+    parser.add_argument("--no-layer", action="store_true",
+                        help="with --hard: the listener <subject>_hard_ppm, the same hard ear scans without the "
+                        "personal-detail layer")
     parser.add_argument("--until", default=None, help="run only up to this output of the listener (e.g. "
                         "remesh/validation.json: fits, stitch and remesh without the solve)")
     args = parser.parse_args()
     if not args.report_only:
-        name = f"{args.subject}_{'hard' if args.hard else 'new'}"
+        if args.no_layer and not args.hard:
+            parser.error("--no-layer goes with --hard (the clean listener's layerless head is kept in steps/)")
+        name = listener_name(args.subject, args.hard, not args.no_layer)
         run(args.subject, args.seed, args.cores, [f"results/listeners/{name}/{args.until}"] if args.until else None,
-            args.hard)
+            args.hard, not args.no_layer)
     print(json.dumps(report(args.subject, args.seed)))
 
 

@@ -15,6 +15,7 @@ import numpy as np
 import trimesh
 from scipy.spatial import cKDTree
 
+from core.self_intersections import self_intersecting_faces
 from mesh2hrtf_io.checks import min_angles_deg
 
 from .errors import StitchError
@@ -106,13 +107,8 @@ def remesh_graded(mesh: trimesh.Trimesh, pinna_points_mm: np.ndarray, bands=DEFA
 
 
 def self_intersections(mesh: trimesh.Trimesh) -> int:
-    """Number of faces that intersect another face (MeshLab's test)."""
-    pymeshlab = _pymeshlab()
-    ms = pymeshlab.MeshSet()
-    ms.add_mesh(pymeshlab.Mesh(vertex_matrix=np.asarray(mesh.vertices, np.float64),
-                               face_matrix=np.asarray(mesh.faces, np.int32)))
-    ms.compute_selection_by_self_intersections_per_face()
-    return int(ms.current_mesh().selected_face_number())
+    """Number of faces that intersect another face (MeshLab's test, core.self_intersections)."""
+    return len(self_intersecting_faces(mesh.vertices, mesh.faces))
 
 
 def repair_self_intersections(mesh: trimesh.Trimesh, rounds: int = 4) -> trimesh.Trimesh:

@@ -22,6 +22,8 @@ import yaml
 from scipy.sparse.csgraph import dijkstra
 from scipy.spatial import cKDTree
 
+from core.self_intersections import self_intersecting_faces
+
 from ..errors import PpmError
 from ..geodesic import rim_vertices  # noqa: F401  (the layer holds the rim; tests import it from here)
 from ..model import DETAIL_KEY  # the shape key that holds the layer in a .blend
@@ -403,5 +405,9 @@ def add_personal_detail(model, target: Target, settings: DetailSettings | None =
     summary = {"ppm": distance_summary(one_sided_distances_mm(judged_on, posed, model.faces)),
                "ppm_detail": distance_summary(one_sided_distances_mm(judged_on, with_detail, model.faces)),
                "layer": detail.summary(), "shape_key": DETAIL_KEY, "shape_key_mismatch_mm": round(mismatch, 6),
+               # faces crossing another, of the fit and of the layered pinna: the fit has no term against it, the
+               # layer none either, but where its evidence covers a crossing it draws the surface onto one sheet
+               "self_intersecting_faces": {"ppm": len(self_intersecting_faces(posed, model.faces)),
+                                           "ppm_detail": len(self_intersecting_faces(with_detail, model.faces))},
                "settings": dataclasses.asdict(settings or DetailSettings.packaged())}
     return detail, summary

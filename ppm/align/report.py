@@ -16,6 +16,7 @@ import trimesh
 from scipy.spatial import cKDTree
 
 from core.atomic import atomic_path, write_text_atomic
+from core.self_intersections import self_intersecting_faces
 from ..model import PinnaModel
 from .fit import AlignmentResult
 from .target import Target
@@ -107,6 +108,12 @@ def write_alignment(out_dir: str | Path, model: PinnaModel, target: Target, resu
     if np.median(distance) > POOR_FIT_MEDIAN_MM or far > POOR_FIT_FAR_SHARE:
         warnings.append(f"POOR FIT: median distance {np.median(distance):.2f} mm, {100 * far:.0f} % of the scan "
                         f"farther than {POOR_FIT_DISTANCE_MM:g} mm; check the scan (side, units, is it a pinna?)")
+    crossing = len(self_intersecting_faces(result.vertices_mm, model.faces))
+    if crossing:
+        # the fit has no term against it: where the scan did not see a fold (the helix over the scapha) the fitted
+        # surface may pass through itself; the remesh relaxes such faces, the layer can untangle them with evidence
+        warnings.append(f"the fitted PPM crosses itself at {crossing} faces (where the scan did not see a fold, e.g. "
+                        "the helix over the scapha); the remesh relaxes them, a scan of that part mends it")
     summary = {
         "target": target.source,
         "distance_target_to_ppm": distance_summary(distance),
@@ -114,6 +121,7 @@ def write_alignment(out_dir: str | Path, model: PinnaModel, target: Target, resu
         "global_pose_start": result.start_index,
         "iterations": len(result.history),
         "folded_faces": result.folded_faces,
+        "self_intersecting_faces": crossing,
         "warnings": warnings,
         **(extra or {}),
     }

@@ -310,7 +310,8 @@ def report(subject: str, seed: int) -> dict:
             summary.update({f"{kind}_paper_delta_qe_pp": round(judged["both"]["delta_qe_pp"], 3),
                             f"{kind}_paper_delta_pe_deg": round(judged["both"]["delta_pe_deg"], 3),
                             f"{kind}_paper_left_delta_qe_pp": round(judged["left"]["delta_qe_pp"], 3),
-                            f"{kind}_paper_right_delta_qe_pp": round(judged["right"]["delta_qe_pp"], 3)})
+                            f"{kind}_paper_right_delta_qe_pp": round(judged["right"]["delta_qe_pp"], 3),
+                            f"{kind}_paper_ears_gap_by_plane": ears_gap(judged)})
     if summary.get("hard_ppm_paper_delta_qe_pp") is not None and summary.get("hard_paper_delta_qe_pp") is not None:
         # the layer brings the hard listener nearer its own ears when both |delta QE| and |delta PE| are smaller
         summary["hard_layer_nearer"] = bool(

@@ -85,6 +85,22 @@ def test_the_layer_takes_a_detail_from_a_defective_scan_and_nothing_else(posed):
     assert detail.summary()["displacement_max_mm"] == pytest.approx(detail.size_mm.max(), abs=1e-4)
 
 
+def test_the_layer_s_summary_counts_faces_crossing_each_other_before_and_after(model, posed):
+    """add_personal_detail's summary says where the fit and the layered pinna pass through themselves (MeshLab's test):
+    a PPM at moderate parameters and a smooth bulge cross nowhere."""
+    from ppm.align.detail import add_personal_detail
+
+    vertices, faces, normals = posed
+    bulge, _ = _bulge(vertices, faces, normals)
+    target = target_from_mesh(trimesh.Trimesh(vertices + bulge, faces, process=False), "bulged PPM")
+    try:
+        _, summary = add_personal_detail(model, target)
+    finally:
+        model.set_detail_weight(0.0)
+    assert summary["self_intersecting_faces"] == {"ppm": 0, "ppm_detail": 0}
+    assert summary["ppm_detail"]["max_mm"] < 0.5 * summary["ppm"]["max_mm"]  # the bulge (0.8 mm) is taken
+
+
 def test_a_scan_of_another_place_moves_nothing(posed):
     """A scan 30 mm away (another ear, a wrong crop) gives no evidence within reach: the PPM stays as fitted."""
     vertices, faces, _ = posed

@@ -23,7 +23,8 @@ results/listeners/ (not committed: the head is the dataset's).
 Run: .venv/bin/python benchmarks/new_listener.py [--subject P143] [--seed 7] [--cores 2] [--hard [--no-layer]]
      [--until remesh/validation.json] [--report-only]
 Last line: JSON with paper_delta_qe_pp, paper_delta_pe_deg, paper_left_delta_qe_pp, paper_right_delta_qe_pp,
-hard_paper_delta_qe_pp, hard_paper_delta_pe_deg, hard_ppm_paper_delta_qe_pp, hard_ppm_paper_delta_pe_deg, coverage_left, coverage_right, directions_compared,
+hard_paper_delta_qe_pp, hard_paper_delta_pe_deg, hard_ppm_paper_delta_qe_pp, hard_ppm_paper_delta_pe_deg,
+hard_layer_nearer, coverage_left, coverage_right, directions_compared,
 reference_cpu_hours, cpu_hours (null where a solve has not finished), the frame and fit figures, the dataset-reference
 line (delta_qe_pp, delta_pe_deg, <side>_ear_only_delta_qe_pp) and the split of another person's set by ear and plane.
 """
@@ -114,10 +115,10 @@ def snakemake(args: list[str]) -> None:
     subprocess.run(command, cwd=ROOT, check=True)
 
 
-def listener_name(subject: str, hard: bool = False, layer: bool = True) -> str:
-    """The listener's name: <subject>_new (the clean head), <subject>_hard (hard ear scans), <subject>_hard_ppm
-    (hard ear scans, no personal-detail layer)."""
-    return f"{subject}_{'new' if not hard else 'hard' if layer else 'hard_ppm'}"
+def listener_kind(hard: bool = False, layer: bool = True) -> str:
+    """Which of the subject's listeners (named <subject>_<kind>): new (the clean head scan), hard (hard ear scans),
+    hard_ppm (hard ear scans, no personal-detail layer)."""
+    return "new" if not hard else "hard" if layer else "hard_ppm"
 
 
 def run(subject: str, seed: int, cores: int, targets: list[str] | None = None, hard: bool = False,
@@ -139,12 +140,11 @@ def write_config(subject: str, seed: int, hard: bool = False, layer: bool = True
     template = f"results/templates/without_{subject}/template_left.ply"
     if not (ROOT / template).is_file():
         snakemake(["--cores", "1", "--config", f"data_root={SONICOM}", "--", template])
-    listener = {"name": f"{subject}_new", "head": str(head.relative_to(ROOT))}
+    kind = listener_kind(hard, layer)
+    listener = {"name": f"{subject}_{kind}", "head": str(head.relative_to(ROOT))}
     if hard:
         ears = hard_ear_scans(subject, seed, pose)
-        listener.update(name=listener_name(subject, hard, layer), **{f"{side}_ear": str(path.relative_to(ROOT))
-                                                                     for side, path in ears.items()})
-    kind = listener_name(subject, hard, layer).removeprefix(f"{subject}_")
+        listener.update({f"{side}_ear": str(path.relative_to(ROOT)) for side, path in ears.items()})
     config = WORK / ("config.yaml" if kind == "new" else f"config_{kind}.yaml")
     config.write_text(json.dumps({
         "listeners": [listener],
@@ -349,7 +349,7 @@ def main() -> None:
     if not args.report_only:
         if args.no_layer and not args.hard:
             parser.error("--no-layer goes with --hard (the clean listener's layerless head is kept in steps/)")
-        name = listener_name(args.subject, args.hard, not args.no_layer)
+        name = f"{args.subject}_{listener_kind(args.hard, not args.no_layer)}"
         run(args.subject, args.seed, args.cores, [f"results/listeners/{name}/{args.until}"] if args.until else None,
             args.hard, not args.no_layer)
     print(json.dumps(report(args.subject, args.seed)))

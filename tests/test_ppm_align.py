@@ -89,6 +89,9 @@ def test_real_scan_outputs(model, sonicom, tmp_path):
     summary = write_alignment(tmp_path, model, target, result)
     assert summary["distance_target_to_ppm"]["median_mm"] < 0.5  # template saw this ear: optimistic
     assert summary["warnings"] == []
+    # a real ear seen whole: nothing crosses, and the helix keeps its clearance from the scapha (ppm.align.sheets)
+    assert summary["self_intersecting_faces"] == 0
+    assert summary["sheet_pairs_pressing"] == 0
     assert PinnaParameters.read(tmp_path / OUTPUT_NAMES["parameters_csv"]) == result.parameters
     assert PinnaParameters.read(tmp_path / OUTPUT_NAMES["parameters_json"]) == result.parameters
     aligned = trimesh.load(tmp_path / OUTPUT_NAMES["aligned_ply"], process=False)

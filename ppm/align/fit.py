@@ -11,7 +11,10 @@ Objective, minimised by damped Gauss-Newton on the parameters normalised to thei
   cannot shrink into a part of the scan;
 * a weak prior pulling each parameter towards its default, in units of its range;
 * a fold barrier: every triangle whose normal turned more than 60° from the template's costs the
-  square of how far past 60° it is (in cosine), so wide bone ranges cannot fold the surface over.
+  square of how far past 60° it is (in cosine), so wide bone ranges cannot fold the surface over;
+* a sheet barrier: where the template folds over itself (helix over scapha, the two faces of the helix rim), a
+  vertex pressing nearer than a fraction of a millimetre to the facing sheet, or through it, costs the square of
+  the shortfall (:mod:`ppm.align.sheets`), so the fit cannot pass through itself where the scan has holes.
 
 The Jacobian of the vertices with respect to the active parameters is taken by finite differences
 of Blender's evaluation (about 2 ms per parameter). Stages follow the manual protocol: the parent
@@ -40,6 +43,7 @@ from ..geodesic import distance_from_rim_mm
 from ..model import PinnaModel
 from ..parameters import PinnaParameters, bounds, parameter_specs
 from .pose import parent_pose_from_rigid, rotation_zyx
+from .sheets import facing_sheets, sheet_terms
 from .surface import OneRingSurface
 from .target import Target
 
@@ -59,6 +63,8 @@ class AlignSettings:
     fold_weight: float = 0.1            # ... costs fold_weight * (fold_cosine - cos(turn))^2 (barrier against folds;
     #                                     1.0 held P143's cymba conchae 1.27 mm too shallow, 0.1 fits it to 0.55 mm
     #                                     with no face folded: benchmarks/align_real.py --fold-weight)
+    sheet_weight: float = 0.01          # a vertex pressing on a facing sheet costs sheet_weight * shortfall^2 (mm^2)
+    sheet_margin_mm: float = 0.3        # ... the clearance kept from it (half the template's where that is less)
     ring_exclusion_mm: float = 4.0      # template vertices this close to its outer ring are not pulled
     normal_min_cosine: float | None = None  # scan -> model pairs whose normals meet at a cosine below this are ignored
     start_angles_deg: tuple[float, ...] = (0.0, 15.0, -15.0)
@@ -133,6 +139,8 @@ class _Problem:
         self.scale = np.maximum(self.upper - self.default, self.default - self.lower)
         self.step = 0.02 * self.scale  # finite-difference step per parameter
         self.rest_normals = model.rest_face_normals
+        self.sheets = (facing_sheets(model.template_vertices_mm, model.faces, margin_mm=settings.sheet_margin_mm)
+                       if settings.sheet_weight > 0 else None)
 
     def residuals(self, vertices: np.ndarray, with_geometry: bool = False):
         """Weighted residual vectors (mm) of both terms, and what is needed for their Jacobians."""
@@ -154,13 +162,23 @@ class _Problem:
         w_b = keep_b * np.minimum(1.0, s.huber_mm / np.maximum(np.abs(r_b), 1e-12)) / max(keep_b.sum(), 1)
         w_b = w_b * s.model_to_target_weight
         fold_faces, r_f, dcos_dv = self.fold_terms(vertices)
-        cost = float((w_a * r_a**2).sum() + (w_b * r_b**2).sum() + s.fold_weight * (r_f**2).sum())
+        pressing, r_s, n_s = self.sheet_terms(vertices)
+        cost = float((w_a * r_a**2).sum() + (w_b * r_b**2).sum() + s.fold_weight * (r_f**2).sum()
+                     + s.sheet_weight * (r_s**2).sum())
         # a fold (cos < 0) is a turned face (fold_cosine >= 0) whose residual exceeds fold_cosine
         stats = {"median_mm": float(np.median(distance)), "kept_share": float(keep_a.mean()),
-                 "folded_faces": int((r_f > s.fold_cosine).sum())}
+                 "folded_faces": int((r_f > s.fold_cosine).sum()), "pressing_pairs": int(len(pressing))}
         if not with_geometry:
             return cost, stats
-        return cost, stats, (face_ids, bary, normal, r_a, w_a, n_b, r_b, w_b, fold_faces, r_f, dcos_dv)
+        return cost, stats, (face_ids, bary, normal, r_a, w_a, n_b, r_b, w_b, fold_faces, r_f, dcos_dv,
+                             pressing, r_s, n_s)
+
+    def sheet_terms(self, vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The facing-sheet pairs pressing too close, their residuals (mm) and plane normals (none without the
+        barrier); see :func:`ppm.align.sheets.sheet_terms`."""
+        if self.sheets is None:
+            return np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros((0, 3))
+        return sheet_terms(self.sheets, vertices, self.model.faces)
 
     def fold_terms(self, vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Faces turned past the fold threshold, their residuals (fold_cosine - cos(turn), so a
@@ -210,7 +228,7 @@ def _gauss_newton_stage(problem: _Problem, params: np.ndarray, active: np.ndarra
     cost += problem.prior(params)
     damping = 1e-3
     for iteration in range(iterations):
-        face_ids, bary, normal, r_a, w_a, n_b, r_b, w_b, fold_faces, r_f, dcos_dv = geometry
+        face_ids, bary, normal, r_a, w_a, n_b, r_b, w_b, fold_faces, r_f, dcos_dv, pressing, r_s, n_s = geometry
         jac = problem.jacobian(params, vertices, active)
         faces = problem.model.faces[face_ids]
         rows_a = sum(bary[:, k, None] * np.einsum("ij,ijk->ik", normal, jac[faces[:, k]]) for k in range(3))
@@ -223,6 +241,12 @@ def _gauss_newton_stage(problem: _Problem, params: np.ndarray, active: np.ndarra
             rows_f = -sum(np.einsum("ij,ijk->ik", dcos_dv[:, k], jac[corners[:, k]]) for k in range(3))
             hessian += s.fold_weight * rows_f.T @ rows_f
             gradient += s.fold_weight * rows_f.T @ r_f
+        if len(pressing):  # residual margin - side * (v_i - v_j) . n_j, the normal held
+            i, j = problem.sheets.i[pressing], problem.sheets.j[pressing]
+            side = problem.sheets.side[pressing]
+            rows_s = -side[:, None] * np.einsum("ij,ijk->ik", n_s, jac[i] - jac[j])
+            hessian += s.sheet_weight * rows_s.T @ rows_s
+            gradient += s.sheet_weight * rows_s.T @ r_s
         hessian += s.prior_weight * np.eye(len(gradient))
         gradient += s.prior_weight * u[active]
         # parameters held at a bound that the descent direction pushes outward stay there (active set)

@@ -18,7 +18,8 @@ from scipy.spatial import cKDTree
 from core.atomic import atomic_path, write_text_atomic
 from core.self_intersections import self_intersecting_faces
 from ..model import PinnaModel
-from .fit import AlignmentResult
+from .fit import AlignmentResult, AlignSettings
+from .sheets import facing_sheets, sheet_terms
 from .target import Target
 
 #: A fit is flagged as poor when its median distance exceeds this (mm) ...
@@ -110,8 +111,8 @@ def write_alignment(out_dir: str | Path, model: PinnaModel, target: Target, resu
                         f"farther than {POOR_FIT_DISTANCE_MM:g} mm; check the scan (side, units, is it a pinna?)")
     crossing = len(self_intersecting_faces(result.vertices_mm, model.faces))
     if crossing:
-        # the fit has no term against it: where the scan did not see a fold (the helix over the scapha) the fitted
-        # surface may pass through itself; the remesh relaxes such faces, the layer can untangle them with evidence
+        # the sheet barrier holds the facing sheets the template has (ppm.align.sheets), not a part pushed through
+        # one it never faced; the remesh relaxes such faces, the layer can untangle them with evidence
         warnings.append(f"the fitted PPM crosses itself at {crossing} faces (where the scan did not see a fold, e.g. "
                         "the helix over the scapha); the remesh relaxes them, a scan of that part mends it")
     summary = {
@@ -122,6 +123,10 @@ def write_alignment(out_dir: str | Path, model: PinnaModel, target: Target, resu
         "iterations": len(result.history),
         "folded_faces": result.folded_faces,
         "self_intersecting_faces": crossing,
+        # the template's facing-sheet pairs nearer than their margin in the fit (ppm.align.sheets, default margin)
+        "sheet_pairs_pressing": len(sheet_terms(facing_sheets(model.template_vertices_mm, model.faces,
+                                                              margin_mm=AlignSettings().sheet_margin_mm),
+                                                result.vertices_mm, model.faces)[0]),
         "warnings": warnings,
         **(extra or {}),
     }

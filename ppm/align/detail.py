@@ -405,8 +405,9 @@ def add_personal_detail(model, target: Target, settings: DetailSettings | None =
     summary = {"ppm": distance_summary(one_sided_distances_mm(judged_on, posed, model.faces)),
                "ppm_detail": distance_summary(one_sided_distances_mm(judged_on, with_detail, model.faces)),
                "layer": detail.summary(), "shape_key": DETAIL_KEY, "shape_key_mismatch_mm": round(mismatch, 6),
-               # faces crossing another, of the fit and of the layered pinna: the fit has no term against it, the
-               # layer none either, but where its evidence covers a crossing it draws the surface onto one sheet
+               # faces crossing another, of the fit and of the layered pinna: the fit's sheet barrier keeps the
+               # template's facing sheets apart, the layer has no such term (pulled towards the raw scan alone it
+               # can cross them; with the reconstruction's fill as evidence it drew them onto one sheet)
                "self_intersecting_faces": {"ppm": len(self_intersecting_faces(posed, model.faces)),
                                            "ppm_detail": len(self_intersecting_faces(with_detail, model.faces))},
                "settings": dataclasses.asdict(settings or DetailSettings.packaged())}

@@ -93,6 +93,7 @@ class AlignmentResult:
     start_index: int
     warnings: list[str]
     folded_faces: int = 0
+    sheet_pairs_pressing: int = 0       # facing-sheet pairs nearer than their margin (ppm.align.sheets; 0 without it)
 
 
 def _stage_mask(stage: str) -> np.ndarray:
@@ -358,4 +359,4 @@ def align(model: PinnaModel, target: Target, settings: AlignSettings | None = No
         warnings.append(f"{folded} triangles of the aligned pinna are folded over (normal turned > 90°); "
                         "fix them by hand in the .blend before stitching")
     return AlignmentResult(final, vertices, history, time.perf_counter() - start, start_index,
-                           warnings + list(target.warnings), folded)
+                           warnings + list(target.warnings), folded, len(problem.sheet_terms(vertices)[0]))

@@ -18,8 +18,7 @@ from scipy.spatial import cKDTree
 from core.atomic import atomic_path, write_text_atomic
 from core.self_intersections import self_intersecting_faces
 from ..model import PinnaModel
-from .fit import AlignmentResult, AlignSettings
-from .sheets import facing_sheets, sheet_terms
+from .fit import AlignmentResult
 from .target import Target
 
 #: A fit is flagged as poor when its median distance exceeds this (mm) ...
@@ -123,10 +122,7 @@ def write_alignment(out_dir: str | Path, model: PinnaModel, target: Target, resu
         "iterations": len(result.history),
         "folded_faces": result.folded_faces,
         "self_intersecting_faces": crossing,
-        # the template's facing-sheet pairs nearer than their margin in the fit (ppm.align.sheets, default margin)
-        "sheet_pairs_pressing": len(sheet_terms(facing_sheets(model.template_vertices_mm, model.faces,
-                                                              margin_mm=AlignSettings().sheet_margin_mm),
-                                                result.vertices_mm, model.faces)[0]),
+        "sheet_pairs_pressing": result.sheet_pairs_pressing,
         "warnings": warnings,
         **(extra or {}),
     }

@@ -115,36 +115,43 @@ def snakemake(args: list[str]) -> None:
     subprocess.run(command, cwd=ROOT, check=True)
 
 
-def listener_kind(hard: bool = False, layer: bool = True) -> str:
-    """Which of the subject's listeners (named <subject>_<kind>): new (the clean head scan), hard (hard ear scans),
-    hard_ppm (hard ear scans, no personal-detail layer)."""
-    return "new" if not hard else "hard" if layer else "hard_ppm"
+def listener_kind(hard: bool = False, layer: bool = True, placed: bool = False) -> str:
+    """Which of the subject's listeners (named <subject>_<kind>): new (the clean head scan), hard (hard ear scans,
+    registered onto the head's ears), hard_ppm (the same, no personal-detail layer), hard_placed (the same hard ear
+    scans placed by the head's frame: they share the head scan's coordinates, as the ear regions of one scan do)."""
+    if not hard:
+        return "new"
+    return "hard_placed" if placed else "hard" if layer else "hard_ppm"
 
 
 def run(subject: str, seed: int, cores: int, targets: list[str] | None = None, hard: bool = False,
-        layer: bool = True) -> None:
+        layer: bool = True, placed: bool = False) -> None:
     """The template without the subject, then the listener's whole run (NumCalc), or only ``targets``; with
-    ``hard`` the listener whose ear scans are the hard ones (<subject>_hard; without ``layer`` <subject>_hard_ppm)."""
-    config = write_config(subject, seed, hard, layer)
+    ``hard`` the listener whose ear scans are the hard ones (<subject>_hard; without ``layer`` <subject>_hard_ppm;
+    with ``placed`` <subject>_hard_placed, the ear scans placed by the head's frame)."""
+    config = write_config(subject, seed, hard, layer, placed)
     snakemake(["--cores", str(cores), "--configfile", str(config.relative_to(ROOT)), "--rerun-triggers", "mtime",
                "--rerun-incomplete",
                *(["--nolock"] if hard else []), *(["--", *targets] if targets else [])])
 
 
-def write_config(subject: str, seed: int, hard: bool = False, layer: bool = True) -> Path:
+def write_config(subject: str, seed: int, hard: bool = False, layer: bool = True, placed: bool = False) -> Path:
     """The run's config (results/new_listener/config.yaml; config_hard.yaml for the listener <subject>_hard, whose
     ears are fitted to their hard scans, given as the listener's separate ear scans, and whose reference is
-    <subject>_new's head as scanned; config_hard_ppm.yaml for the same without the layer), the template without the
-    subject built first."""
+    <subject>_new's head as scanned; config_hard_ppm.yaml for the same without the layer; config_hard_placed.yaml for
+    the hard ear scans placed by the head's frame, ear_scan_frame: head), the template without the subject built
+    first."""
     head, pose = posed_head(subject, seed)
     template = f"results/templates/without_{subject}/template_left.ply"
     if not (ROOT / template).is_file():
         snakemake(["--cores", "1", "--config", f"data_root={SONICOM}", "--", template])
-    kind = listener_kind(hard, layer)
+    kind = listener_kind(hard, layer, placed)
     listener = {"name": f"{subject}_{kind}", "head": str(head.relative_to(ROOT))}
     if hard:
         ears = hard_ear_scans(subject, seed, pose)
         listener.update({f"{side}_ear": str(path.relative_to(ROOT)) for side, path in ears.items()})
+        if placed:  # written with the head's pose and unit: in the head scan's own coordinates
+            listener["ear_scan_frame"] = "head"
     config = WORK / ("config.yaml" if kind == "new" else f"config_{kind}.yaml")
     config.write_text(json.dumps({
         "listeners": [listener],
@@ -299,7 +306,7 @@ def report(subject: str, seed: int) -> dict:
     # both ears together costing more than the two alone added is the model's, not the pipeline's
     summary["other_person_ears_gap_by_plane"] = other_person_gap(subject)
     # the hard listener, with the layer (hard_) and without it (hard_ppm_), judged against the same head as scanned
-    for kind in ("hard", "hard_ppm"):
+    for kind in ("hard", "hard_ppm", "hard_placed"):
         base_kind = ROOT / "results" / "listeners" / f"{subject}_{kind}"
         kind_cpu, _ = store_cpu(STORE / "listeners" / f"{subject}_{kind}" / "personal")
         summary[f"{kind}_cpu_hours"] = round(kind_cpu, 3)
@@ -343,15 +350,20 @@ def main() -> None:
     parser.add_argument("--no-layer", action="store_true",
                         help="with --hard: the listener <subject>_hard_ppm, the same hard ear scans without the "
                         "personal-detail layer")
+    parser.add_argument("--placed", action="store_true",
+                        help="with --hard: the listener <subject>_hard_placed, the same hard ear scans placed by the "
+                        "head's frame (they share the head scan's coordinates) instead of registered")
     parser.add_argument("--until", default=None, help="run only up to this output of the listener (e.g. "
                         "remesh/validation.json: fits, stitch and remesh without the solve)")
     args = parser.parse_args()
     if not args.report_only:
         if args.no_layer and not args.hard:
             parser.error("--no-layer goes with --hard (the clean listener's layerless head is kept in steps/)")
-        name = f"{args.subject}_{listener_kind(args.hard, not args.no_layer)}"
+        if args.placed and (not args.hard or args.no_layer):
+            parser.error("--placed goes with --hard and the layer")
+        name = f"{args.subject}_{listener_kind(args.hard, not args.no_layer, args.placed)}"
         run(args.subject, args.seed, args.cores, [f"results/listeners/{name}/{args.until}"] if args.until else None,
-            args.hard, not args.no_layer)
+            args.hard, not args.no_layer, args.placed)
     print(json.dumps(report(args.subject, args.seed)))
 
 

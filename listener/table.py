@@ -12,11 +12,18 @@ from .errors import ListenerError
 
 @dataclass(frozen=True)
 class Listener:
-    """A new listener: its head scan and, by side ('left'/'right'), separate scans of its ears."""
+    """A new listener: its head scan and, by side ('left'/'right'), separate scans of its ears. ``ear_scan_frame``:
+    ``"any"`` (the ear scans are in any pose and unit and are registered onto the head's ears) or ``"head"`` (they
+    share the head scan's coordinates and unit, as the scans of one session do, and are placed by the head's frame)."""
 
     name: str
     head: Path
     ear_scans: dict[str, Path] = field(default_factory=dict)
+    ear_scan_frame: str = "any"
+
+
+#: How a listener's separate ear scans are brought onto its head (config listeners: ear_scan_frame).
+EAR_SCAN_FRAMES = ("any", "head")
 
 
 def _checked(path: str, what: str, name: str) -> Path:
@@ -35,7 +42,7 @@ def listeners_of(config: dict) -> dict[str, Listener]:
     Raises
     ------
     ListenerError
-        If a name repeats, or a scan is missing, empty or not PLY/STL/OBJ.
+        If a name repeats, a scan is missing, empty or not PLY/STL/OBJ, or ear_scan_frame is unknown.
     """
     listeners: dict[str, Listener] = {}
     for entry in config.get("listeners") or []:
@@ -44,7 +51,12 @@ def listeners_of(config: dict) -> dict[str, Listener]:
             raise ListenerError(f"config listeners: the name {name!r} is given twice; give each listener its own name")
         ears = {side: _checked(entry[f"{side}_ear"], f"scan of the {side} ear", name)
                 for side in ("left", "right") if entry.get(f"{side}_ear")}
-        listeners[name] = Listener(name, _checked(entry["head"], "head scan", name), ears)
+        frame = str(entry.get("ear_scan_frame") or "any")
+        if frame not in EAR_SCAN_FRAMES:
+            raise ListenerError(f"config listeners ({name}): ear_scan_frame is {frame!r}; give 'any' (ear scans in any "
+                                "pose, registered onto the head's ears) or 'head' (ear scans in the head scan's own "
+                                "coordinates and unit)")
+        listeners[name] = Listener(name, _checked(entry["head"], "head scan", name), ears, frame)
     return listeners
 
 

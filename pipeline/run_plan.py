@@ -544,6 +544,11 @@ class RunPlan:
         """The separate scan of a listener's ear on ``side`` (config listeners: left_ear, right_ear)."""
         return str(self.listeners[listener].ear_scans[side])
 
+    def listener_ear_scan_frame(self, listener: str) -> str:
+        """How a listener's separate ear scans reach its head (config listeners: ear_scan_frame): 'any' (registered
+        onto the head's ears) or 'head' (placed by the head's frame: the scans share the head scan's coordinates)."""
+        return self.listeners[listener].ear_scan_frame
+
     def listener_target_scan(self, listener: str, side: str) -> str:
         """What a listener's ear is fitted to: its separate scan registered onto the head where one is given, else
         the ear cut from the head."""

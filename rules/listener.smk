@@ -34,6 +34,7 @@ rule listener_ear_scan:
     input:
         scan=lambda wc: RUN.listener_ear_scan(wc.listener, wc.side),
         crop="results/listeners/{listener}/prepared/pinna_{side}_crop.ply",
+        frame="results/listeners/{listener}/prepared/frame.json",
     output:
         mesh="results/listeners/{listener}/prepared/ear_scan_{side}.ply",
         report="results/listeners/{listener}/prepared/ear_scan_{side}.json",
@@ -41,6 +42,8 @@ rule listener_ear_scan:
         "logs/listener/ear_scan/{listener}_{side}.log",
     benchmark:
         "benchmarks/timings/listener/ear_scan/{listener}_{side}.tsv"
+    params:
+        ear_scan_frame=lambda wc: RUN.listener_ear_scan_frame(wc.listener),
     threads: 1
     resources:
         mem_mb=measured_mem_mb("prepare_target"),

@@ -84,3 +84,30 @@ def test_a_separate_ear_scan_registers_onto_the_head_s_ear(p143, sonicom):
     other = trimesh.load(sonicom / "P039" / "pinna_left_crop.ply", process=False)
     with pytest.raises(ListenerError, match="does not register onto the head's left ear"):
         register_ear_scan(other, crop, "left", "P039's ear")
+
+
+def test_an_ear_scan_in_the_head_scan_s_coordinates_is_placed_by_the_head_s_frame(p143, sonicom):
+    """P143's left crop written in the head scan's coordinates (turned, moved, cm) lands exactly where it is on the
+    head through the head's frame, without registration; the same scan 5 mm off, or in mm while the head is in cm,
+    is refused with a message that names ear_scan_frame."""
+    from listener.ear_scan import place_ear_scan
+    from listener.ears import pinna_crop
+
+    crop = pinna_crop(p143, "left")
+    scan = trimesh.load(sonicom / "P143" / "pinna_left_crop.ply", process=False)
+    rotation = Rotation.random(random_state=5).as_matrix()
+    shift = np.array([40.0, -70.0, 20.0])
+    to_frame = np.eye(4)  # the head's frame: head scan coordinates (cm) -> project frame (mm)
+    to_frame[:3, :3] = 10.0 * rotation.T
+    to_frame[:3, 3] = -rotation.T @ shift
+
+    def in_head_coordinates(vertices_mm: np.ndarray, unit_mm: float = 10.0) -> trimesh.Trimesh:
+        return trimesh.Trimesh((np.asarray(vertices_mm) @ rotation.T + shift) / unit_mm, scan.faces, process=False)
+
+    placed, summary = place_ear_scan(in_head_coordinates(scan.vertices), to_frame, "cm", crop, "left")
+    assert summary["placed_by"] == "head frame" and summary["unit"] == "cm" and summary["share_within_1mm"] > 0.95
+    assert np.abs(placed.vertices - scan.vertices).max() < 1e-6
+    with pytest.raises(ListenerError, match="ear_scan_frame"):
+        place_ear_scan(in_head_coordinates(scan.vertices + [0.0, 0.0, 5.0]), to_frame, "cm", crop, "left")
+    with pytest.raises(ListenerError, match="ear_scan_frame"):
+        place_ear_scan(in_head_coordinates(scan.vertices, unit_mm=1.0), to_frame, "cm", crop, "left")

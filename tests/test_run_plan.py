@@ -208,6 +208,12 @@ def test_a_listener_is_solved_as_its_own_subject_on_the_full_grid(in_root, tmp_p
     assert validating.export_settings("listeners/anna")["grid"] == "full"
     with pytest.raises(RunConfigError, match="given twice"):
         RunPlan(_config(listeners=[{"name": "anna", "head": str(scan)}] * 2))
+    # separate ear scans are registered onto the head's ears unless they share the head scan's coordinates
+    assert run.listener_ear_scan_frame("anna") == "any"
+    placed = RunPlan(_config(listeners=[{"name": "anna", "head": str(scan), "ear_scan_frame": "head"}]))
+    assert placed.listener_ear_scan_frame("anna") == "head"
+    with pytest.raises(RunConfigError, match="ear_scan_frame"):
+        RunPlan(_config(listeners=[{"name": "anna", "head": str(scan), "ear_scan_frame": "scanner"}]))
     with pytest.raises(RunConfigError, match="missing or empty"):
         RunPlan(_config(listeners=[{"name": "anna", "head": str(tmp_path / "none.ply")}]))
     with pytest.raises(RunConfigError, match="listener.template"):

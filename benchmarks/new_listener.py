@@ -261,6 +261,31 @@ def ear_figures(base: Path, prefix: str = "") -> dict:
     return figures
 
 
+def ears_to_scanned(personal_head: Path, scanned_head: Path) -> dict:
+    """How far each ear of a personal head lies from the head as scanned (mm, project frame): over both meshes'
+    vertices in the ear's crop box (listener.ears: |x| < 50, |z| < 55, |y| > 50 mm), each to the other's surface, the
+    median, p95 and share beyond 0.5 mm, by side. The clean listener's ears lie within a few hundredths (median)."""
+    import trimesh  # noqa: PLC0415
+
+    from listener.ears import CROP_X_MM, CROP_Y_MM, CROP_Z_MM  # noqa: PLC0415
+
+    personal = trimesh.load(personal_head, process=False, force="mesh")
+    scanned = trimesh.load(scanned_head, process=False, force="mesh")
+
+    def in_box(mesh: trimesh.Trimesh, sign: float) -> np.ndarray:
+        v = np.asarray(mesh.vertices)
+        return v[(np.abs(v[:, 0]) < CROP_X_MM) & (np.abs(v[:, 2]) < CROP_Z_MM) & (sign * v[:, 1] > CROP_Y_MM)]
+
+    out = {}
+    for side, sign in (("left", 1.0), ("right", -1.0)):
+        distance = np.concatenate([trimesh.proximity.closest_point(scanned, in_box(personal, sign))[1],
+                                   trimesh.proximity.closest_point(personal, in_box(scanned, sign))[1]])
+        out[side] = {"median_mm": round(float(np.median(distance)), 3),
+                     "p95_mm": round(float(np.percentile(distance, 95)), 3),
+                     "share_over_0_5mm": round(float(np.mean(distance > 0.5)), 3)}
+    return out
+
+
 def report(subject: str, seed: int) -> dict:
     """The figures of a (finished or partial) run."""
     _, pose = posed_head(subject, seed)
@@ -306,6 +331,13 @@ def report(subject: str, seed: int) -> dict:
     # both ears together costing more than the two alone added is the model's, not the pipeline's
     summary["other_person_ears_gap_by_plane"] = other_person_gap(subject)
     # the hard listener, with the layer (hard_) and without it (hard_ppm_), judged against the same head as scanned
+    scanned_head = STORE / "listeners" / f"{subject}_new" / "scanned" / "head.ply"
+    for kind in ("new", "hard", "hard_ppm", "hard_placed"):
+        # each personal head's ears against the head as scanned (the stored, solved heads)
+        personal_head = STORE / "listeners" / f"{subject}_{kind}" / "personal" / "head.ply"
+        if personal_head.is_file() and scanned_head.is_file():
+            summary[f"{'' if kind == 'new' else kind + '_'}ears_to_scanned"] = ears_to_scanned(personal_head,
+                                                                                              scanned_head)
     for kind in ("hard", "hard_ppm", "hard_placed"):
         base_kind = ROOT / "results" / "listeners" / f"{subject}_{kind}"
         kind_cpu, _ = store_cpu(STORE / "listeners" / f"{subject}_{kind}" / "personal")

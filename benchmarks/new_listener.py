@@ -14,17 +14,22 @@ and its head as scanned solved the same way (listener.scanned_head), then judged
 - with --hard, the listener <subject>_hard: the same posed head, both ears fitted to hard scans given as its
   separate ear scans (independent fixed draws), judged against <subject>_new's head as scanned;
 - with --hard --no-layer, the listener <subject>_hard_ppm: the same hard scans and fits, the PPM without the
-  personal-detail layer, judged the same way (whether the layer brings the hard listener nearer its own ears).
+  personal-detail layer, judged the same way (whether the layer brings the hard listener nearer its own ears);
+- with --hard --placed, the listener <subject>_hard_placed: the same hard scans, taken to share the head scan's
+  coordinates (ear_scan_frame: head) and placed by the head's frame instead of registered, as a head scan whose ear
+  regions are the hard scans has them (benchmarks/ear_scan_placement.py: registration leaves them 0.24-0.58 mm off);
+- every solved personal head's ears against the head as scanned (<kind>_ears_to_scanned, mm).
 
 The steps are kept in benchmarks/results/new_listener/steps_dataset_grid as they finish, so that a run stopped on the
 way (or a fresh clone) continues from them. The posed head and the run's outputs stay in results/new_listener/ and
 results/listeners/ (not committed: the head is the dataset's).
 
-Run: .venv/bin/python benchmarks/new_listener.py [--subject P143] [--seed 7] [--cores 2] [--hard [--no-layer]]
+Run: .venv/bin/python benchmarks/new_listener.py [--subject P143] [--seed 7] [--cores 2] [--hard [--no-layer | --placed]]
      [--until remesh/validation.json] [--report-only]
 Last line: JSON with paper_delta_qe_pp, paper_delta_pe_deg, paper_left_delta_qe_pp, paper_right_delta_qe_pp,
 hard_paper_delta_qe_pp, hard_paper_delta_pe_deg, hard_ppm_paper_delta_qe_pp, hard_ppm_paper_delta_pe_deg,
-hard_layer_nearer, coverage_left, coverage_right, directions_compared,
+hard_layer_nearer, hard_placed_paper_delta_qe_pp, hard_placed_paper_delta_pe_deg, coverage_left, coverage_right,
+directions_compared, <kind>_ears_to_scanned,
 reference_cpu_hours, cpu_hours (null where a solve has not finished), the frame and fit figures, the dataset-reference
 line (delta_qe_pp, delta_pe_deg, <side>_ear_only_delta_qe_pp) and the split of another person's set by ear and plane.
 """

@@ -371,8 +371,21 @@ def report(subject: str, seed: int) -> dict:
         for plane, row in summary["paper_ears_gap_by_plane"].items():
             print(f"  plane {plane} deg: left alone {row['left']:+.2f}, right alone {row['right']:+.2f}, both "
                   f"{row['both']:+.2f} pp (both minus the sum {row['excess']:+.2f})", flush=True)
+    kept_file = KEPT / f"{subject}.json"
+    if kept_file.is_file():
+        # figures of a run folder this machine does not have (results/ is not committed: the fits, the frame, the
+        # remesh of an earlier run) are carried from the kept JSON and named, not dropped
+        kept = json.loads(kept_file.read_text())
+        carried = sorted(key for key in kept if key not in summary and key != "carried_from_kept")
+        summary.update({key: kept[key] for key in carried})
+        if carried:
+            summary["carried_from_kept"] = carried
+            print(f"carried from the kept {kept_file.name} (their run folders are not on this machine): "
+                  f"{', '.join(carried)}", flush=True)
     KEPT.mkdir(parents=True, exist_ok=True)
-    (KEPT / f"{subject}.json").write_text(json.dumps(summary, indent=1) + "\n")
+    write_atomic = kept_file.with_suffix(".json.tmp")
+    write_atomic.write_text(json.dumps(summary, indent=1) + "\n")
+    write_atomic.replace(kept_file)
     return summary
 
 

@@ -305,7 +305,7 @@ def report(subject: str, seed: int) -> dict:
     reference_cpu, _ = store_cpu(STORE / "listeners" / f"{subject}_new" / "scanned")
     personal, scanned = (base / "hrtf" / variant / "HRIR.sofa" for variant in ("personal", "scanned"))
     dataset = SONICOM / subject / DATASET_SOFA
-    summary.update(ears_solved=len(ears) if personal.is_file() else 0, cpu_hours=round(personal_cpu, 3),
+    summary.update(ears_solved=len(ears), cpu_hours=round(personal_cpu, 3),  # the ears the store holds
                    reference_cpu_hours=round(reference_cpu, 3), personal_detail=True)
     if personal.is_file():
         second = dataset_line(personal, dataset)
@@ -361,6 +361,18 @@ def report(subject: str, seed: int) -> dict:
         summary["hard_layer_nearer"] = bool(
             abs(summary["hard_paper_delta_qe_pp"]) < abs(summary["hard_ppm_paper_delta_qe_pp"])
             and abs(summary["hard_paper_delta_pe_deg"]) < abs(summary["hard_ppm_paper_delta_pe_deg"]))
+    kept_file = KEPT / f"{subject}.json"
+    if kept_file.is_file():
+        # figures of a run folder this machine does not have (results/ is not committed: the fits, the frame, the
+        # remesh of an earlier run) are carried from the kept JSON and named, not dropped
+        kept = json.loads(kept_file.read_text())
+        carried = sorted(key for key in kept if summary.get(key) is None and kept[key] is not None
+                         and key != "carried_from_kept")
+        summary.update({key: kept[key] for key in carried})
+        if carried:
+            summary["carried_from_kept"] = carried
+            print(f"carried from the kept {kept_file.name} (their run folders are not on this machine): "
+                  f"{', '.join(carried)}", flush=True)
     print(f"{subject} as a new listener: {json.dumps({k: v for k, v in summary.items() if not isinstance(v, dict)})}",
           flush=True)
     if summary.get("paper_delta_qe_pp") is not None:
@@ -371,17 +383,6 @@ def report(subject: str, seed: int) -> dict:
         for plane, row in summary["paper_ears_gap_by_plane"].items():
             print(f"  plane {plane} deg: left alone {row['left']:+.2f}, right alone {row['right']:+.2f}, both "
                   f"{row['both']:+.2f} pp (both minus the sum {row['excess']:+.2f})", flush=True)
-    kept_file = KEPT / f"{subject}.json"
-    if kept_file.is_file():
-        # figures of a run folder this machine does not have (results/ is not committed: the fits, the frame, the
-        # remesh of an earlier run) are carried from the kept JSON and named, not dropped
-        kept = json.loads(kept_file.read_text())
-        carried = sorted(key for key in kept if key not in summary and key != "carried_from_kept")
-        summary.update({key: kept[key] for key in carried})
-        if carried:
-            summary["carried_from_kept"] = carried
-            print(f"carried from the kept {kept_file.name} (their run folders are not on this machine): "
-                  f"{', '.join(carried)}", flush=True)
     KEPT.mkdir(parents=True, exist_ok=True)
     write_atomic = kept_file.with_suffix(".json.tmp")
     write_atomic.write_text(json.dumps(summary, indent=1) + "\n")

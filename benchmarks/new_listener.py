@@ -346,9 +346,12 @@ def report(subject: str, seed: int) -> dict:
     for kind in ("hard", "hard_ppm", "hard_placed"):
         base_kind = ROOT / "results" / "listeners" / f"{subject}_{kind}"
         kind_cpu, _ = store_cpu(STORE / "listeners" / f"{subject}_{kind}" / "personal")
-        summary[f"{kind}_cpu_hours"] = round(kind_cpu, 3)
         summary.update(ear_figures(base_kind, f"{kind}_"))
         solved = base_kind / "hrtf" / "personal" / "HRIR.sofa"
+        # CPU hours of a finished solve only (the collected set is its sign); a solve under way gives its steps so far
+        summary[f"{kind}_cpu_hours"] = round(kind_cpu, 3) if solved.is_file() else None
+        summary[f"{kind}_steps_kept"] = len(list((STORE / "listeners" / f"{subject}_{kind}" / "personal")
+                                                 .rglob("step_*.npz")))
         if solved.is_file() and scanned.is_file():
             judged = paper_line(solved, scanned, dataset)
             summary.update({f"{kind}_paper_delta_qe_pp": round(judged["both"]["delta_qe_pp"], 3),

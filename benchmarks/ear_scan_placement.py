@@ -27,7 +27,6 @@ from pathlib import Path
 
 import numpy as np
 import trimesh
-import yaml
 from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
 
@@ -38,6 +37,7 @@ from listener.dataset_heads import both_ears_head  # noqa: E402
 from listener.ear_scan import place_ear_scan, register_ear_scan  # noqa: E402
 from listener.ears import pinna_crop  # noqa: E402
 from ppm.align.report import boundary_samples  # noqa: E402
+from new_listener import evaluation_hard_scan  # noqa: E402
 from stitching.both_ears import mirror_left_right, right_ear_scan_as_left  # noqa: E402
 
 SONICOM = ROOT.parent / "shared" / "data" / "sonicom"
@@ -47,19 +47,26 @@ SCALE_MM = 0.5
 
 def hard_scan(subject: str, side: str) -> trimesh.Trimesh:
     """The hard scan of the subject's ``side`` ear in the dataset frame (mm), as the listener benchmark makes it."""
-    recipe = yaml.safe_load((ROOT / "config" / "config.yaml").read_text(encoding="utf-8"))["evaluation"]["hard_scan"]
+    recipe = evaluation_hard_scan()
     if side == "left":
         return trimesh.load(ROOT / "evaluation" / "sonicom" / "hard_scans" / f"{subject}_hard_scan.ply", process=False)
     return mirror_left_right(right_ear_scan_as_left(SONICOM / subject / "pinna_right_crop.ply", subject,
                                                     recipe["level"], recipe["seed"]))
 
 
+def point_to_plane(points_mm: np.ndarray, crop: trimesh.Trimesh, edge: cKDTree
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Each point's signed distance along the normal of its closest point on ``crop`` (mm), that normal, and whether
+    the pair counts (its closest point lies at least 1 mm from the crop's cut edge, ``edge``: a KD-tree of it)."""
+    closest, _, triangle = trimesh.proximity.closest_point(crop, points_mm)
+    normal = crop.face_normals[triangle]
+    return np.einsum("ij,ij->i", points_mm - closest, normal), normal, edge.query(closest)[0] >= 1.0
+
+
 def placement_score(vertices_mm: np.ndarray, crop: trimesh.Trimesh) -> float:
     """Mean Geman-McClure loss of the signed point-to-plane distances of ``vertices_mm`` to ``crop`` (lower: the scan
     lies better on the ear), pairs whose closest point is within 1 mm of the crop's cut edge left out."""
-    closest, _, triangle = trimesh.proximity.closest_point(crop, vertices_mm)
-    residual = np.einsum("ij,ij->i", vertices_mm - closest, crop.face_normals[triangle])
-    keep = cKDTree(boundary_samples(crop)).query(closest)[0] >= 1.0
+    residual, _, keep = point_to_plane(vertices_mm, crop, cKDTree(boundary_samples(crop)))
     ratio = (residual[keep] / SCALE_MM) ** 2
     return float(np.mean(ratio / (1.0 + ratio)))
 
@@ -70,11 +77,8 @@ def refined(vertices_mm: np.ndarray, crop: trimesh.Trimesh, rounds: int = 100) -
     points = np.asarray(vertices_mm, dtype=np.float64)
     edge = cKDTree(boundary_samples(crop))
     for _ in range(rounds):
-        closest, _, triangle = trimesh.proximity.closest_point(crop, points)
-        normal = crop.face_normals[triangle]
-        residual = np.einsum("ij,ij->i", points - closest, normal)
-        weight = 1.0 / (1.0 + (residual / SCALE_MM) ** 2) ** 2
-        weight[edge.query(closest)[0] < 1.0] = 0.0
+        residual, normal, keep = point_to_plane(points, crop, edge)
+        weight = np.where(keep, 1.0 / (1.0 + (residual / SCALE_MM) ** 2) ** 2, 0.0)
         root = np.sqrt(weight)[:, None]
         step = np.linalg.lstsq(np.hstack([np.cross(points, normal), normal]) * root, -residual * root[:, 0],
                                rcond=None)[0]

@@ -272,19 +272,18 @@ def ears_to_scanned(personal_head: Path, scanned_head: Path) -> dict:
     median, p95 and share beyond 0.5 mm, by side. The clean listener's ears lie within a few hundredths (median)."""
     import trimesh  # noqa: PLC0415
 
-    from listener.ears import CROP_X_MM, CROP_Y_MM, CROP_Z_MM  # noqa: PLC0415
+    from listener.ears import in_crop_box  # noqa: PLC0415
 
     personal = trimesh.load(personal_head, process=False, force="mesh")
     scanned = trimesh.load(scanned_head, process=False, force="mesh")
 
-    def in_box(mesh: trimesh.Trimesh, sign: float) -> np.ndarray:
-        v = np.asarray(mesh.vertices)
-        return v[(np.abs(v[:, 0]) < CROP_X_MM) & (np.abs(v[:, 2]) < CROP_Z_MM) & (sign * v[:, 1] > CROP_Y_MM)]
+    def in_box(mesh: trimesh.Trimesh, side: str) -> np.ndarray:
+        return np.asarray(mesh.vertices)[in_crop_box(mesh.vertices, side)]
 
     out = {}
-    for side, sign in (("left", 1.0), ("right", -1.0)):
-        distance = np.concatenate([trimesh.proximity.closest_point(scanned, in_box(personal, sign))[1],
-                                   trimesh.proximity.closest_point(personal, in_box(scanned, sign))[1]])
+    for side in ("left", "right"):
+        distance = np.concatenate([trimesh.proximity.closest_point(scanned, in_box(personal, side))[1],
+                                   trimesh.proximity.closest_point(personal, in_box(scanned, side))[1]])
         out[side] = {"median_mm": round(float(np.median(distance)), 3),
                      "p95_mm": round(float(np.percentile(distance, 95)), 3),
                      "share_over_0_5mm": round(float(np.mean(distance > 0.5)), 3)}
@@ -386,10 +385,10 @@ def report(subject: str, seed: int) -> dict:
         for plane, row in summary["paper_ears_gap_by_plane"].items():
             print(f"  plane {plane} deg: left alone {row['left']:+.2f}, right alone {row['right']:+.2f}, both "
                   f"{row['both']:+.2f} pp (both minus the sum {row['excess']:+.2f})", flush=True)
+    from core.atomic import write_text_atomic  # noqa: PLC0415
+
     KEPT.mkdir(parents=True, exist_ok=True)
-    write_atomic = kept_file.with_suffix(".json.tmp")
-    write_atomic.write_text(json.dumps(summary, indent=1) + "\n")
-    write_atomic.replace(kept_file)
+    write_text_atomic(kept_file, json.dumps(summary, indent=1) + "\n")
     return summary
 
 

@@ -99,15 +99,16 @@ def register_ear_scan(scan: trimesh.Trimesh, crop: trimesh.Trimesh, side: str,
                         "placed_by": "registration"}
 
 
-def _on_ear(points_mm: np.ndarray, crop: trimesh.Trimesh, side: str, source: str, verb: str) -> tuple[float, float]:
+def _on_ear(points_mm: np.ndarray, crop: trimesh.Trimesh, side: str, source: str, verb: str,
+            advice: str = "") -> tuple[float, float]:
     """(trimmed median distance mm, share within NEAR_MM) of the scan's points to the head's ear; raises
-    ListenerError where they are too far for the scan to be this ear where it is."""
+    ListenerError where they are too far for the scan to be this ear where it is (``advice`` ends its message)."""
     _, distance, _ = trimesh.proximity.closest_point(crop, points_mm)
     median, near = _trimmed_median(distance), float(np.mean(distance < NEAR_MM))
     if median > MAX_MEDIAN_MM or near < MIN_NEAR_SHARE:
         raise ListenerError(f"{source}: the {side} ear scan {verb} the head's {side} ear (median distance {median:.2f} "
                             f"mm, at most {MAX_MEDIAN_MM:g}; {100 * near:.0f} % of it within {NEAR_MM:g} mm, at least "
-                            f"{100 * MIN_NEAR_SHARE:.0f} %); is it this listener's {side} ear, and an ear at all?")
+                            f"{100 * MIN_NEAR_SHARE:.0f} %); is it this listener's {side} ear, and an ear at all?{advice}")
     return median, near
 
 
@@ -136,10 +137,8 @@ def place_ear_scan(scan: trimesh.Trimesh, head_matrix: np.ndarray, head_unit: st
     vertices = np.asarray(scan.vertices, dtype=np.float64) @ matrix[:3, :3].T + matrix[:3, 3]
     placed = trimesh.Trimesh(vertices, scan.faces, process=False)
     points = placed.sample(POINTS, seed=1) if len(placed.faces) else vertices
-    try:
-        median, near = _on_ear(points, crop, side, source, "placed by the head's frame does not lie on")
-    except ListenerError as error:
-        raise ListenerError(f"{error} With ear_scan_frame: head the scan must share the head scan's coordinates; "
-                            "leave ear_scan_frame out to have it registered.") from error
+    median, near = _on_ear(points, crop, side, source, "placed by the head's frame does not lie on",
+                           " With ear_scan_frame: head the scan must share the head scan's coordinates; leave "
+                           "ear_scan_frame out to have it registered.")
     return placed, {"unit": unit, "median_mm": round(median, 3), "share_within_1mm": round(near, 3), "side": side,
                     "placed_by": "head frame"}

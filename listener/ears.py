@@ -15,6 +15,13 @@ from .errors import ListenerError
 CROP_X_MM, CROP_Z_MM, CROP_Y_MM = 50.0, 55.0, 50.0
 
 
+def in_crop_box(points_mm: np.ndarray, side: str) -> np.ndarray:
+    """Per point (n, 3; mm, project frame), whether it lies in the crop box of the ``side`` ('left'/'right') ear."""
+    points = np.asarray(points_mm, dtype=np.float64)
+    sign = {"left": 1.0, "right": -1.0}[side]
+    return (np.abs(points[:, 0]) < CROP_X_MM) & (np.abs(points[:, 2]) < CROP_Z_MM) & (sign * points[:, 1] > CROP_Y_MM)
+
+
 def pinna_crop(head: trimesh.Trimesh, side: str, source: str = "head mesh") -> trimesh.Trimesh:
     """The faces of ``head`` (mm, project frame) inside the crop box of the ``side`` ('left'/'right') ear, the
     largest connected part, as an open surface.
@@ -24,10 +31,7 @@ def pinna_crop(head: trimesh.Trimesh, side: str, source: str = "head mesh") -> t
     ListenerError
         If the box holds no part of the head large enough to be a pinna with its skin ring.
     """
-    sign = {"left": 1.0, "right": -1.0}[side]
-    corners = np.asarray(head.vertices)[head.faces]
-    inside = ((np.abs(corners[..., 0]) < CROP_X_MM) & (np.abs(corners[..., 2]) < CROP_Z_MM)
-              & (sign * corners[..., 1] > CROP_Y_MM)).all(axis=1)
+    inside = in_crop_box(np.asarray(head.vertices)[head.faces].reshape(-1, 3), side).reshape(-1, 3).all(axis=1)
     faces = np.flatnonzero(inside)
     if len(faces) == 0:
         raise ListenerError(f"{source}: nothing of the head lies in the {side} ear's crop box; is the head in the "

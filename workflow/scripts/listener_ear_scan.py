@@ -27,7 +27,7 @@ except PpmError as error:
     raise ListenerError(str(error)) from error
 crop = trimesh.load(snakemake.input.crop, process=False, force="mesh")  # noqa: F821
 if snakemake.params.ear_scan_frame == "head":  # noqa: F821
-    frame = json.loads(open(snakemake.input.frame, encoding="utf-8").read())  # noqa: F821
+    frame = json.loads(Path(snakemake.input.frame).read_text(encoding="utf-8"))  # noqa: F821
     registered, summary = place_ear_scan(scan, np.asarray(frame["matrix"]), frame["unit"], crop, side,  # noqa: F821
                                          str(snakemake.input.scan))  # noqa: F821
 else:

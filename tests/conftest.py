@@ -4,6 +4,7 @@ bpy is imported before pymeshlab in this process (pymeshlab ships an older Embre
 """
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import bpy  # noqa: F401  (must come before pymeshlab)
@@ -13,6 +14,16 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 SHARED_DATA = ROOT.parent / "shared" / "data"
 SONICOM = SHARED_DATA / "sonicom"
+MODULE_SECONDS = Path(__file__).with_name("module_seconds.json")
+
+
+def pytest_collection_modifyitems(items: list) -> None:
+    """The longest test files first (seconds measured in module_seconds.json; unlisted files are short), each
+    file's own order kept: pytest-xdist's loadfile hands files out in collection order, and a long file handed
+    out last keeps one worker busy while the other idles."""
+    seconds = json.loads(MODULE_SECONDS.read_text(encoding="utf-8"))["seconds"]
+    position = {id(item): index for index, item in enumerate(items)}
+    items.sort(key=lambda item: (-seconds.get(Path(str(item.fspath)).name, 0), position[id(item)]))
 
 
 @pytest.fixture(scope="session")

@@ -18,17 +18,20 @@ and its head as scanned solved the same way (listener.scanned_head), then judged
 - with --hard --placed, the listener <subject>_hard_placed: the same hard scans, taken to share the head scan's
   coordinates (ear_scan_frame: head) and placed by the head's frame instead of registered, as a head scan whose ear
   regions are the hard scans has them (benchmarks/ear_scan_placement.py: registration leaves them 0.24-0.58 mm off);
+- with --hard --placed --no-layer, the listener <subject>_hard_ppm_placed: the same placed scans without the layer
+  (whether the layer brings the placed hard listener nearer its own ears: hard_placed_layer_nearer);
 - every solved personal head's ears against the head as scanned (<kind>_ears_to_scanned, mm).
 
 The steps are kept in benchmarks/results/new_listener/steps_dataset_grid as they finish, so that a run stopped on the
 way (or a fresh clone) continues from them. The posed head and the run's outputs stay in results/new_listener/ and
 results/listeners/ (not committed: the head is the dataset's).
 
-Run: .venv/bin/python benchmarks/new_listener.py [--subject P143] [--seed 7] [--cores 2] [--hard [--no-layer | --placed]]
+Run: .venv/bin/python benchmarks/new_listener.py [--subject P143] [--seed 7] [--cores 2] [--hard [--no-layer] [--placed]]
      [--until remesh/validation.json] [--report-only]
 Last line: JSON with paper_delta_qe_pp, paper_delta_pe_deg, paper_left_delta_qe_pp, paper_right_delta_qe_pp,
 hard_paper_delta_qe_pp, hard_paper_delta_pe_deg, hard_ppm_paper_delta_qe_pp, hard_ppm_paper_delta_pe_deg,
-hard_layer_nearer, hard_placed_paper_delta_qe_pp, hard_placed_paper_delta_pe_deg, coverage_left, coverage_right,
+hard_layer_nearer, hard_placed_paper_delta_qe_pp, hard_placed_paper_delta_pe_deg, hard_ppm_placed_paper_delta_qe_pp,
+hard_ppm_placed_paper_delta_pe_deg, hard_placed_layer_nearer, coverage_left, coverage_right,
 directions_compared, <kind>_ears_to_scanned,
 reference_cpu_hours, cpu_hours (null where a solve has not finished), the frame and fit figures, the dataset-reference
 line (delta_qe_pp, delta_pe_deg, <side>_ear_only_delta_qe_pp) and the split of another person's set by ear and plane.
@@ -53,6 +56,8 @@ WORK = ROOT / "results" / "new_listener"
 #: added (listener.dataset_grid). The first run's steps (personal head without the layer, full grid alone) stay in
 #: KEPT / "steps" for the record.
 STORE = KEPT / "steps_dataset_grid"
+#: The listeners whose ears are fitted to hard scans: registered or placed, with the layer or without.
+HARD_KINDS = ("hard", "hard_ppm", "hard_placed", "hard_ppm_placed")
 DATASET_SOFA = "hrir_mesh2hrtf_48k.sofa"
 
 
@@ -123,10 +128,11 @@ def snakemake(args: list[str]) -> None:
 def listener_kind(hard: bool = False, layer: bool = True, placed: bool = False) -> str:
     """Which of the subject's listeners (named <subject>_<kind>): new (the clean head scan), hard (hard ear scans,
     registered onto the head's ears), hard_ppm (the same, no personal-detail layer), hard_placed (the same hard ear
-    scans placed by the head's frame: they share the head scan's coordinates, as the ear regions of one scan do)."""
+    scans placed by the head's frame: they share the head scan's coordinates, as the ear regions of one scan do),
+    hard_ppm_placed (the placed scans, no layer)."""
     if not hard:
         return "new"
-    return "hard_placed" if placed else "hard" if layer else "hard_ppm"
+    return ("hard" if layer else "hard_ppm") + ("_placed" if placed else "")
 
 
 def run(subject: str, seed: int, cores: int, targets: list[str] | None = None, hard: bool = False,
@@ -336,13 +342,13 @@ def report(subject: str, seed: int) -> dict:
     summary["other_person_ears_gap_by_plane"] = other_person_gap(subject)
     # the hard listener, with the layer (hard_) and without it (hard_ppm_), judged against the same head as scanned
     scanned_head = STORE / "listeners" / f"{subject}_new" / "scanned" / "head.ply"
-    for kind in ("new", "hard", "hard_ppm", "hard_placed"):
+    for kind in ("new", *HARD_KINDS):
         # each personal head's ears against the head as scanned (the stored, solved heads)
         personal_head = STORE / "listeners" / f"{subject}_{kind}" / "personal" / "head.ply"
         if personal_head.is_file() and scanned_head.is_file():
             summary[f"{'' if kind == 'new' else kind + '_'}ears_to_scanned"] = ears_to_scanned(personal_head,
                                                                                               scanned_head)
-    for kind in ("hard", "hard_ppm", "hard_placed"):
+    for kind in HARD_KINDS:
         base_kind = ROOT / "results" / "listeners" / f"{subject}_{kind}"
         kind_cpu, _ = store_cpu(STORE / "listeners" / f"{subject}_{kind}" / "personal")
         summary.update(ear_figures(base_kind, f"{kind}_"))
@@ -358,11 +364,13 @@ def report(subject: str, seed: int) -> dict:
                             f"{kind}_paper_left_delta_qe_pp": round(judged["left"]["delta_qe_pp"], 3),
                             f"{kind}_paper_right_delta_qe_pp": round(judged["right"]["delta_qe_pp"], 3),
                             f"{kind}_paper_ears_gap_by_plane": ears_gap(judged)})
-    if summary.get("hard_ppm_paper_delta_qe_pp") is not None and summary.get("hard_paper_delta_qe_pp") is not None:
-        # the layer brings the hard listener nearer its own ears when both |delta QE| and |delta PE| are smaller
-        summary["hard_layer_nearer"] = bool(
-            abs(summary["hard_paper_delta_qe_pp"]) < abs(summary["hard_ppm_paper_delta_qe_pp"])
-            and abs(summary["hard_paper_delta_pe_deg"]) < abs(summary["hard_ppm_paper_delta_pe_deg"]))
+    for layered, bare, key in (("hard", "hard_ppm", "hard_layer_nearer"),
+                               ("hard_placed", "hard_ppm_placed", "hard_placed_layer_nearer")):
+        if summary.get(f"{bare}_paper_delta_qe_pp") is not None and summary.get(f"{layered}_paper_delta_qe_pp") is not None:
+            # the layer brings the hard listener nearer its own ears when both |delta QE| and |delta PE| are smaller
+            summary[key] = bool(
+                abs(summary[f"{layered}_paper_delta_qe_pp"]) < abs(summary[f"{bare}_paper_delta_qe_pp"])
+                and abs(summary[f"{layered}_paper_delta_pe_deg"]) < abs(summary[f"{bare}_paper_delta_pe_deg"]))
     kept_file = KEPT / f"{subject}.json"
     if kept_file.is_file():
         # figures of a run folder this machine does not have (results/ is not committed: the fits, the frame, the
@@ -404,16 +412,17 @@ def main() -> None:
                         help="with --hard: the listener <subject>_hard_ppm, the same hard ear scans without the "
                         "personal-detail layer")
     parser.add_argument("--placed", action="store_true",
-                        help="with --hard: the listener <subject>_hard_placed, the same hard ear scans placed by the "
-                        "head's frame (they share the head scan's coordinates) instead of registered")
+                        help="with --hard: the listener <subject>_hard_placed (with --no-layer "
+                        "<subject>_hard_ppm_placed), the same hard ear scans placed by the head's frame (they share the "
+                        "head scan's coordinates) instead of registered")
     parser.add_argument("--until", default=None, help="run only up to this output of the listener (e.g. "
                         "remesh/validation.json: fits, stitch and remesh without the solve)")
     args = parser.parse_args()
     if not args.report_only:
         if args.no_layer and not args.hard:
             parser.error("--no-layer goes with --hard (the clean listener's layerless head is kept in steps/)")
-        if args.placed and (not args.hard or args.no_layer):
-            parser.error("--placed goes with --hard and the layer")
+        if args.placed and not args.hard:
+            parser.error("--placed goes with --hard")
         name = f"{args.subject}_{listener_kind(args.hard, not args.no_layer, args.placed)}"
         run(args.subject, args.seed, args.cores, [f"results/listeners/{name}/{args.until}"] if args.until else None,
             args.hard, not args.no_layer, args.placed)

@@ -83,6 +83,24 @@ def find_numcalc(configured: str | os.PathLike | None = None) -> Path:
     raise NumCalcError(f"NumCalc is not on PATH nor in {venv_numcalc().parent}: {INSTALL_HINT}")
 
 
+def _killed_hint(returncode: int) -> str:
+    """What a negative exit status (killed by a signal) most likely means, for the error message; '' otherwise."""
+    if returncode >= 0:
+        return ""
+    import signal  # noqa: PLC0415
+
+    try:
+        name = signal.Signals(-returncode).name
+    except ValueError:
+        name = f"signal {-returncode}"
+    if -returncode == signal.SIGKILL:
+        return (f": killed by {name}, most often the out-of-memory killer. Each step needs the memory NumCalc "
+                "-estimate_ram gives (the job's mem_mb); run fewer at once (--cores, or --resources mem_mb=<the "
+                "machine's MB>), and never two Snakemake runs side by side on one machine, which do not see each "
+                "other's jobs")
+    return f": killed by {name}"
+
+
 def estimate_memory(numcalc: Path, source_folder: str | os.PathLike) -> list[StepEstimate]:
     """Run ``NumCalc -estimate_ram`` and read ``Memory.txt``: one estimate per frequency step."""
     source_folder = Path(source_folder)
@@ -226,8 +244,8 @@ def run_step(numcalc: Path, source_folder: str | os.PathLike, step: int, expecte
         complete = step_is_complete(source_folder, step, expected_nodes)
         if result.returncode != 0 or not complete:
             raise NumCalcError(f"{source_folder}: NumCalc step {step} failed (exit {result.returncode}, result "
-                               f"{'complete' if complete else 'missing or incomplete'}); log {log_file}:\n"
-                               f"{(log_text or result.stdout + result.stderr)[-1500:]}")
+                               f"{'complete' if complete else 'missing or incomplete'}){_killed_hint(result.returncode)}"
+                               f"; log {log_file}:\n{(log_text or result.stdout + result.stderr)[-1500:]}")
         stopped = last_residual(result.stdout)
         attempt = {"max_iterations": iterations, "cluster_tree": tree, "seconds": round(seconds, 2),
                    "cpu_seconds": round(cpu_seconds, 2), "problems": problems}

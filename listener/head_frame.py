@@ -159,16 +159,11 @@ def _polish_plane(tree: cKDTree, subset: np.ndarray, normal: np.ndarray, offset:
     return polished, moved, float(result.fun)
 
 
-def symmetry_plane(points: np.ndarray, config: dict) -> tuple[np.ndarray, float, float]:
-    """The plane ``normal @ p = offset`` (mm) the points are most nearly mirror-symmetric about, and the RMS
-    distance (mm) of the mirrored points to the surface (the nearest 90 %). Mirror ICP from each principal axis:
-    pair each point with the surface point nearest its mirror image, fit the reflection that maps the points
-    onto their partners (Kabsch with the determinant held at -1), take its plane; then polish those planes by
-    minimising the RMS directly (:func:`_polish_plane`), the lowest ICP RMS first, and the best of them. A start whose
-    ICP RMS is more than ``polish_within`` times the best polished RMS is not polished: the polish moves a plane a
-    few degrees, and on the four heads with ears in ../shared/data the other two axes' planes ended 2.6-4.1 times
-    above the mid-sagittal one after ICP and lowered by at most 5 % in the polish (config ``polish_within``;
-    without it every start is polished)."""
+def mirror_icp_planes(points: np.ndarray, config: dict) -> tuple[cKDTree, np.ndarray, list[tuple[float, np.ndarray, float]]]:
+    """Mirror ICP from each principal axis of ``points`` (mm): pair each point with the surface point nearest its
+    mirror image, fit the reflection that maps the points onto their partners (Kabsch with the determinant held at
+    -1), take its plane, until it moves less than 0.005 deg. Returns the cloud's tree, the points measured (the
+    first ``config["points"]``) and one (mirror RMS in mm, normal, offset) per start."""
     rng = np.random.default_rng(0)
     cloud = points[rng.choice(len(points), min(len(points), 100_000), replace=False)]
     subset = cloud[: int(config["points"])]
@@ -194,6 +189,18 @@ def symmetry_plane(points: np.ndarray, config: dict) -> tuple[np.ndarray, float,
             if moved < 0.005:
                 break
         starts.append((_mirror_rms(tree, subset, normal, offset), normal, offset))
+    return tree, subset, starts
+
+
+def symmetry_plane(points: np.ndarray, config: dict) -> tuple[np.ndarray, float, float]:
+    """The plane ``normal @ p = offset`` (mm) the points are most nearly mirror-symmetric about, and the RMS
+    distance (mm) of the mirrored points to the surface (the nearest 90 %): the planes of
+    :func:`mirror_icp_planes` polished by minimising the RMS directly (:func:`_polish_plane`), the lowest ICP RMS
+    first, and the best of them. A start whose ICP RMS is more than ``polish_within`` times the best polished RMS
+    is not polished: the polish moves a plane a few degrees, and on the four heads with ears in ../shared/data the
+    other two axes' planes lie 2.6-4.9 times above the polished mid-sagittal one after ICP and the polish lowers
+    them by at most 6 % (``studies/symmetry_starts.py``). Without ``polish_within`` every start is polished."""
+    tree, subset, starts = mirror_icp_planes(points, config)
     within = config.get("polish_within")
     best = None
     for icp_rms, normal, offset in sorted(starts, key=lambda start: start[0]):

@@ -43,6 +43,7 @@ import json
 import subprocess
 import sys
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -174,21 +175,31 @@ def write_config(subject: str, seed: int, hard: bool = False, layer: bool = True
     return config
 
 
-def store_work(folder: Path) -> tuple[float, int, set[str]]:
-    """NumCalc CPU hours and iterations (all attempts) of the steps kept under ``folder``, and their sources. The
-    iterations are the work; CPU seconds per iteration depend on what else the machine runs (1.7-3.1 s on this
+class StoreWork(NamedTuple):
+    """What the steps kept under one head's folder of the step store cost (:func:`store_work`)."""
+
+    cpu_hours: float
+    iterations: int  # NumCalc iterations, all attempts: the work, whatever else the machine ran
+    steps: int  # steps kept
+    ears: set[str]  # the sources (ears) they belong to
+
+
+def store_work(folder: Path) -> StoreWork:
+    """NumCalc CPU hours, iterations (all attempts) and count of the steps kept under ``folder``, and their sources.
+    The iterations are the work; CPU seconds per iteration depend on what else the machine runs (1.7-3.1 s on this
     2-core machine for heads of the same size), so the CPU hours of solves made beside other work are not the
     head's alone."""
     from mesh2hrtf_io.step_store import solve_cpu_seconds  # noqa: PLC0415
 
-    cpu, iterations, ears = 0.0, 0, set()
+    cpu, iterations, steps, ears = 0.0, 0, 0, set()
     for stored in sorted(folder.rglob("step_*.npz")):
         with np.load(stored) as kept:
             status = json.loads(str(kept["status_json"]))
         cpu += solve_cpu_seconds(status)
         iterations += sum(int(attempt.get("iterations", 0)) for attempt in status.get("attempts", []))
+        steps += 1
         ears.add(stored.parent.name)
-    return cpu / 3600.0, iterations, ears
+    return StoreWork(cpu / 3600.0, iterations, steps, ears)
 
 
 def dataset_line(personal_hrir: Path, dataset_sofa: Path) -> dict:
@@ -311,14 +322,13 @@ def report(subject: str, seed: int) -> dict:
                                            "hard_ppm_paper_delta_pe_deg", "coverage_left", "coverage_right",
                                            "directions_compared", "delta_qe_pp", "delta_pe_deg")}
     summary.update(fit_figures(base, pose))
-    personal_cpu, personal_iterations, ears = store_work(STORE / "listeners" / f"{subject}_new" / "personal")
-    personal_steps = len(list((STORE / "listeners" / f"{subject}_new" / "personal").rglob("step_*.npz")))
-    reference_cpu, _, _ = store_work(STORE / "listeners" / f"{subject}_new" / "scanned")
+    personal_work = store_work(STORE / "listeners" / f"{subject}_new" / "personal")
+    reference_work = store_work(STORE / "listeners" / f"{subject}_new" / "scanned")
     personal, scanned = (base / "hrtf" / variant / "HRIR.sofa" for variant in ("personal", "scanned"))
     dataset = SONICOM / subject / DATASET_SOFA
-    summary.update(ears_solved=len(ears), cpu_hours=round(personal_cpu, 3),  # the ears the store holds
-                   numcalc_iterations=personal_iterations,
-                   reference_cpu_hours=round(reference_cpu, 3), personal_detail=True)
+    summary.update(ears_solved=len(personal_work.ears), cpu_hours=round(personal_work.cpu_hours, 3),  # stored ears
+                   numcalc_iterations=personal_work.iterations,
+                   reference_cpu_hours=round(reference_work.cpu_hours, 3), personal_detail=True)
     if personal.is_file():
         second = dataset_line(personal, dataset)
         summary.update(delta_qe_pp=round(second["both"]["delta_qe_pp"], 3),
@@ -357,16 +367,15 @@ def report(subject: str, seed: int) -> dict:
                                                                                               scanned_head)
     for kind in HARD_KINDS:
         base_kind = ROOT / "results" / "listeners" / f"{subject}_{kind}"
-        kind_cpu, kind_iterations, _ = store_work(STORE / "listeners" / f"{subject}_{kind}" / "personal")
+        kind_work = store_work(STORE / "listeners" / f"{subject}_{kind}" / "personal")
         summary.update(ear_figures(base_kind, f"{kind}_"))
         solved = base_kind / "hrtf" / "personal" / "HRIR.sofa"
-        steps_kept = len(list((STORE / "listeners" / f"{subject}_{kind}" / "personal").rglob("step_*.npz")))
         # figures of a finished solve only (the collected set, or as many steps kept as the clean listener's, is its
         # sign); a solve under way gives its steps so far
-        complete = solved.is_file() or steps_kept == personal_steps
-        summary[f"{kind}_cpu_hours"] = round(kind_cpu, 3) if complete else None
-        summary[f"{kind}_numcalc_iterations"] = kind_iterations if complete else None
-        summary[f"{kind}_steps_kept"] = steps_kept
+        complete = solved.is_file() or kind_work.steps == personal_work.steps
+        summary[f"{kind}_cpu_hours"] = round(kind_work.cpu_hours, 3) if complete else None
+        summary[f"{kind}_numcalc_iterations"] = kind_work.iterations if complete else None
+        summary[f"{kind}_steps_kept"] = kind_work.steps
         if solved.is_file() and scanned.is_file():
             judged = paper_line(solved, scanned, dataset)
             summary.update({f"{kind}_paper_delta_qe_pp": round(judged["both"]["delta_qe_pp"], 3),

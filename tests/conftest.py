@@ -22,8 +22,7 @@ def pytest_collection_modifyitems(items: list) -> None:
     file's own order kept: pytest-xdist's loadfile hands files out in collection order, and a long file handed
     out last keeps one worker busy while the other idles."""
     seconds = json.loads(MODULE_SECONDS.read_text(encoding="utf-8"))["seconds"]
-    position = {id(item): index for index, item in enumerate(items)}
-    items.sort(key=lambda item: (-seconds.get(Path(str(item.fspath)).name, 0), position[id(item)]))
+    items.sort(key=lambda item: -seconds.get(Path(str(item.fspath)).name, 0))  # a stable sort: each file's order kept
 
 
 @pytest.fixture(scope="session")

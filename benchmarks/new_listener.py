@@ -20,13 +20,18 @@ and its head as scanned solved the same way (listener.scanned_head), then judged
   regions are the hard scans has them (benchmarks/ear_scan_placement.py: registration leaves them 0.24-0.58 mm off);
 - with --hard --placed --no-layer, the listener <subject>_hard_ppm_placed: the same placed scans without the layer
   (whether the layer brings the placed hard listener nearer its own ears: hard_placed_layer_nearer);
+- with --hard --oracle, the listener <subject>_hard_oracle_placed: the placed, layered listener whose hard scans are
+  completed by the clean crop's faces they never saw (no scan point within 2 mm): what the parts the scans were blind
+  to cost the hard listener (unseen_share_of_hard_placed_gap: the share of hard_placed's both-ear delta QE and PE that
+  the completed scans take away);
 - every solved personal head's ears against the head as scanned (<kind>_ears_to_scanned, mm).
 
 The steps are kept in benchmarks/results/new_listener/steps_dataset_grid as they finish, so that a run stopped on the
 way (or a fresh clone) continues from them. The posed head and the run's outputs stay in results/new_listener/ and
 results/listeners/ (not committed: the head is the dataset's).
 
-Run: .venv/bin/python benchmarks/new_listener.py [--subject P143] [--seed 7] [--cores 2] [--hard [--no-layer] [--placed]]
+Run: .venv/bin/python benchmarks/new_listener.py [--subject P143] [--seed 7] [--cores 2]
+     [--hard [--no-layer] [--placed] [--oracle]]
      [--until remesh/validation.json] [--report-only]
 Last line: JSON with paper_delta_qe_pp, paper_delta_pe_deg, paper_left_delta_qe_pp, paper_right_delta_qe_pp,
 hard_paper_delta_qe_pp, hard_paper_delta_pe_deg, hard_ppm_paper_delta_qe_pp, hard_ppm_paper_delta_pe_deg,
@@ -57,8 +62,9 @@ WORK = ROOT / "results" / "new_listener"
 #: added (listener.dataset_grid). The first run's steps (personal head without the layer, full grid alone) stay in
 #: KEPT / "steps" for the record.
 STORE = KEPT / "steps_dataset_grid"
-#: The listeners whose ears are fitted to hard scans: registered or placed, with the layer or without.
-HARD_KINDS = ("hard", "hard_ppm", "hard_placed", "hard_ppm_placed")
+#: The listeners whose ears are fitted to hard scans: registered or placed, with the layer or without; and the placed,
+#: layered listener whose hard scans are completed by the truth where they were blind (hard_oracle_placed).
+HARD_KINDS = ("hard", "hard_ppm", "hard_placed", "hard_ppm_placed", "hard_oracle_placed")
 DATASET_SOFA = "hrir_mesh2hrtf_48k.sofa"
 
 
@@ -90,33 +96,45 @@ def posed_head(subject: str, seed: int) -> tuple[Path, np.ndarray]:
     return path, pose
 
 
-def hard_ear_scans(subject: str, seed: int, pose: np.ndarray) -> dict[str, Path]:
-    """Both ears of the subject scanned at the ``hard`` level of ppm/data/scan_defects.yaml (occlusion holes, 2 mm
-    sampling, 0.5 mm noise, outliers, spikes, a partial crop), each its own fixed draw: the left ear is the
-    evaluation's own hard scan (:func:`evaluation_hard_scan`, the seed mixed with the subject's name,
-    evaluation/sonicom/hard_scans/), the right ear the same recipe on the mirrored right crop with the seed mixed with
-    "<subject>_right" (stitching.both_ears.right_ear_scan_as_left), mirrored back.
-    Posed and written in centimetres as the head is; returns side -> file."""
-    import trimesh  # noqa: PLC0415
-
+def hard_scan_mm(subject: str, side: str) -> "trimesh.Trimesh":
+    """The ``side`` ear's fixed hard scan (mm, head frame): the left ear is the evaluation's own hard scan
+    (:func:`evaluation_hard_scan`, the seed mixed with the subject's name, evaluation/sonicom/hard_scans/), the right
+    ear the same recipe on the mirrored right crop with the seed mixed with "<subject>_right"
+    (stitching.both_ears.right_ear_scan_as_left), mirrored back."""
     from ppm.align.defects import hard_scan_of  # noqa: PLC0415
     from stitching.both_ears import mirror_left_right, right_ear_scan_as_left  # noqa: PLC0415
 
     recipe = evaluation_hard_scan()
+    crop = SONICOM / subject / f"pinna_{side}_crop.ply"
+    if side == "left":
+        return hard_scan_of(crop, subject, recipe["level"], recipe["seed"])[0]
+    return mirror_left_right(right_ear_scan_as_left(crop, subject, recipe["level"], recipe["seed"]))
+
+
+def hard_ear_scans(subject: str, seed: int, pose: np.ndarray, oracle: bool = False) -> dict[str, Path]:
+    """Both ears of the subject scanned at the ``hard`` level of ppm/data/scan_defects.yaml (occlusion holes, 2 mm
+    sampling, 0.5 mm noise, outliers, spikes, a partial crop), each its own fixed draw (:func:`hard_scan_mm`); with
+    ``oracle`` each completed where it was blind by the clean crop (reporting.stitched_region.completed_where_blind:
+    what the listener loses to the parts its scans never saw). Posed and written in centimetres as the head is; returns side -> file."""
+    import trimesh  # noqa: PLC0415
+
+    from core.atomic import atomic_path  # noqa: PLC0415
+    from reporting.stitched_region import completed_where_blind  # noqa: PLC0415
+
     paths = {}
     for side in ("left", "right"):
-        path = WORK / f"{subject}_hard_{side}_ear_cm.ply"
+        path = WORK / f"{subject}_hard{'_oracle' if oracle else ''}_{side}_ear_cm.ply"
         paths[side] = path
         if path.is_file():
             continue
-        crop = SONICOM / subject / f"pinna_{side}_crop.ply"
-        if side == "left":
-            scan, _ = hard_scan_of(crop, subject, recipe["level"], recipe["seed"])
-        else:
-            scan = mirror_left_right(right_ear_scan_as_left(crop, subject, recipe["level"], recipe["seed"]))
+        scan = hard_scan_mm(subject, side)
+        if oracle:
+            crop = trimesh.load(SONICOM / subject / f"pinna_{side}_crop.ply", process=False, force="mesh")
+            scan = completed_where_blind(scan, crop)
         posed = (np.asarray(scan.vertices) @ pose[:3, :3].T + pose[:3, 3]) / 10.0
         WORK.mkdir(parents=True, exist_ok=True)
-        trimesh.Trimesh(posed, scan.faces, process=False).export(path)
+        with atomic_path(path) as temporary:
+            trimesh.Trimesh(posed, scan.faces, process=False).export(temporary, file_type="ply")
     return paths
 
 
@@ -126,43 +144,48 @@ def snakemake(args: list[str]) -> None:
     subprocess.run(command, cwd=ROOT, check=True)
 
 
-def listener_kind(hard: bool = False, layer: bool = True, placed: bool = False) -> str:
+def listener_kind(hard: bool = False, layer: bool = True, placed: bool = False, oracle: bool = False) -> str:
     """Which of the subject's listeners (named <subject>_<kind>): new (the clean head scan), hard (hard ear scans,
     registered onto the head's ears), hard_ppm (the same, no personal-detail layer), hard_placed (the same hard ear
     scans placed by the head's frame: they share the head scan's coordinates, as the ear regions of one scan do),
-    hard_ppm_placed (the placed scans, no layer)."""
+    hard_ppm_placed (the placed scans, no layer), hard_oracle_placed (the placed, layered listener whose hard scans
+    are completed by the clean crop where they were blind)."""
     if not hard:
         return "new"
+    if oracle:
+        return "hard_oracle_placed"
     return ("hard" if layer else "hard_ppm") + ("_placed" if placed else "")
 
 
 def run(subject: str, seed: int, cores: int, targets: list[str] | None = None, hard: bool = False,
-        layer: bool = True, placed: bool = False) -> None:
+        layer: bool = True, placed: bool = False, oracle: bool = False) -> None:
     """The template without the subject, then the listener's whole run (NumCalc), or only ``targets``; with
     ``hard`` the listener whose ear scans are the hard ones (<subject>_hard; without ``layer`` <subject>_hard_ppm;
-    with ``placed`` <subject>_hard_placed, the ear scans placed by the head's frame)."""
-    config = write_config(subject, seed, hard, layer, placed)
+    with ``placed`` <subject>_hard_placed, the ear scans placed by the head's frame; with ``oracle``
+    <subject>_hard_oracle_placed)."""
+    config = write_config(subject, seed, hard, layer, placed, oracle)
     snakemake(["--cores", str(cores), "--configfile", str(config.relative_to(ROOT)), "--rerun-triggers", "mtime",
                "--rerun-incomplete",
                *(["--nolock"] if hard else []), *(["--", *targets] if targets else [])])
 
 
-def write_config(subject: str, seed: int, hard: bool = False, layer: bool = True, placed: bool = False) -> Path:
+def write_config(subject: str, seed: int, hard: bool = False, layer: bool = True, placed: bool = False,
+                 oracle: bool = False) -> Path:
     """The run's config (results/new_listener/config.yaml; config_hard.yaml for the listener <subject>_hard, whose
     ears are fitted to their hard scans, given as the listener's separate ear scans, and whose reference is
     <subject>_new's head as scanned; config_hard_ppm.yaml for the same without the layer; config_hard_placed.yaml for
-    the hard ear scans placed by the head's frame, ear_scan_frame: head), the template without the subject built
-    first."""
+    the hard ear scans placed by the head's frame, ear_scan_frame: head; config_hard_oracle_placed.yaml for the placed
+    scans completed by the truth where they were blind), the template without the subject built first."""
     head, pose = posed_head(subject, seed)
     template = f"results/templates/without_{subject}/template_left.ply"
     if not (ROOT / template).is_file():
         snakemake(["--cores", "1", "--config", f"data_root={SONICOM}", "--", template])
-    kind = listener_kind(hard, layer, placed)
+    kind = listener_kind(hard, layer, placed, oracle)
     listener = {"name": f"{subject}_{kind}", "head": str(head.relative_to(ROOT))}
     if hard:
-        ears = hard_ear_scans(subject, seed, pose)
+        ears = hard_ear_scans(subject, seed, pose, oracle)
         listener.update({f"{side}_ear": str(path.relative_to(ROOT)) for side, path in ears.items()})
-        if placed:  # written with the head's pose and unit: in the head scan's own coordinates
+        if placed or oracle:  # written with the head's pose and unit: in the head scan's own coordinates
             listener["ear_scan_frame"] = "head"
     config = WORK / ("config.yaml" if kind == "new" else f"config_{kind}.yaml")
     config.write_text(json.dumps({
@@ -390,6 +413,11 @@ def report(subject: str, seed: int) -> dict:
             summary[key] = bool(
                 abs(summary[f"{layered}_paper_delta_qe_pp"]) < abs(summary[f"{bare}_paper_delta_qe_pp"])
                 and abs(summary[f"{layered}_paper_delta_pe_deg"]) < abs(summary[f"{bare}_paper_delta_pe_deg"]))
+    if summary.get("hard_oracle_placed_paper_delta_qe_pp") is not None and summary.get("hard_placed_paper_delta_qe_pp"):
+        # what completing the hard scans where they were blind takes off the placed hard listener's gap (share of it)
+        summary["unseen_share_of_hard_placed_gap"] = {
+            quantity: round(1.0 - summary[f"hard_oracle_placed_paper_delta_{quantity}"]
+                            / summary[f"hard_placed_paper_delta_{quantity}"], 3) for quantity in ("qe_pp", "pe_deg")}
     kept_file = KEPT / f"{subject}.json"
     if kept_file.is_file():
         # figures of a run folder this machine does not have (results/ is not committed: the fits, the frame, the
@@ -434,17 +462,23 @@ def main() -> None:
                         help="with --hard: the listener <subject>_hard_placed (with --no-layer "
                         "<subject>_hard_ppm_placed), the same hard ear scans placed by the head's frame (they share the "
                         "head scan's coordinates) instead of registered")
+    parser.add_argument("--oracle", action="store_true",
+                        help="with --hard: the listener <subject>_hard_oracle_placed, the placed hard ear scans with "
+                        "the clean crop's faces they never saw added (how much of the hard listener's gap the unseen "
+                        "parts cost)")
     parser.add_argument("--until", default=None, help="run only up to this output of the listener (e.g. "
                         "remesh/validation.json: fits, stitch and remesh without the solve)")
     args = parser.parse_args()
     if not args.report_only:
         if args.no_layer and not args.hard:
             parser.error("--no-layer goes with --hard (the clean listener's layerless head is kept in steps/)")
-        if args.placed and not args.hard:
-            parser.error("--placed goes with --hard")
-        name = f"{args.subject}_{listener_kind(args.hard, not args.no_layer, args.placed)}"
+        if (args.placed or args.oracle) and not args.hard:
+            parser.error("--placed and --oracle go with --hard")
+        if args.oracle and args.no_layer:
+            parser.error("--oracle is the placed listener with the layer")
+        name = f"{args.subject}_{listener_kind(args.hard, not args.no_layer, args.placed, args.oracle)}"
         run(args.subject, args.seed, args.cores, [f"results/listeners/{name}/{args.until}"] if args.until else None,
-            args.hard, not args.no_layer, args.placed)
+            args.hard, not args.no_layer, args.placed, args.oracle)
     print(json.dumps(report(args.subject, args.seed)))
 
 

@@ -23,6 +23,22 @@ def seen_by(scan_points_mm: np.ndarray, points_mm: np.ndarray) -> np.ndarray:
     return cKDTree(np.asarray(scan_points_mm, np.float64)).query(np.asarray(points_mm, np.float64))[0] < SEEN_MM
 
 
+def completed_where_blind(scan: trimesh.Trimesh, truth: trimesh.Trimesh,
+                          normal_agreement_deg: float = 60.0) -> trimesh.Trimesh:
+    """An oracle scan: ``truth`` (the clean crop, mm, same frame as ``scan``) with each vertex the scan saw
+    (:func:`seen_by`, and facing the way the scan's surface there faces, within ``normal_agreement_deg``) moved onto
+    its closest point on the scan's surface. The scan's noise where it saw, the truth where it was blind (holes, the
+    partial crop, the back of the flap), on the truth's one connected surface, so that the pinna's segmentation keeps
+    all of it. What a better scanner would have delivered: it tells what the blind parts cost, no one gets it."""
+    vertices = np.asarray(truth.vertices, np.float64)
+    closest, _, triangle = trimesh.proximity.closest_point(scan, vertices)
+    facing = np.einsum("ij,ij->i", scan.face_normals[triangle], truth.vertex_normals)
+    moved = seen_by(scan.vertices, vertices) & (facing > np.cos(np.radians(normal_agreement_deg)))
+    completed = vertices.copy()
+    completed[moved] = closest[moved]
+    return trimesh.Trimesh(completed, truth.faces, process=False)
+
+
 def region_distances(truth: Target, seen: np.ndarray, guide: trimesh.Trimesh, vertices_mm: np.ndarray,
                      faces: np.ndarray) -> dict[str, float]:
     """Over the region the stitch replaces under ``guide`` (the PPM fitted to the scan): truth -> surface and

@@ -48,3 +48,25 @@ def test_the_listener_page_shows_what_each_scan_saw(ear, tmp_path):
     assert "What the scans saw" in page and "rescan the left lobule" in page and "coverage_right.png" in page
     picture = coverage_picture(crop.vertices, crop.faces, half, tmp_path / "coverage_left.png", "left ear")
     assert picture.stat().st_size > 10_000
+
+
+def test_a_scan_completed_where_it_was_blind_gets_the_hole_back(ear):
+    """The oracle of benchmarks/new_listener.py --oracle: a scan 0.3 mm off the crop along its normals with the cymba
+    cut out (6 mm round its landmark), completed by the clean crop: the crop's connected surface, its vertices the
+    scan saw moved onto the scan (0.3 mm), those it never saw (the cymba's core) left where the truth has them, and
+    then every region seen."""
+    from reporting.coverage import pinna_coverage
+    from reporting.stitched_region import completed_where_blind, seen_by
+
+    crop, landmarks = ear
+    offset = trimesh.Trimesh(crop.vertices + 0.3 * crop.vertex_normals, crop.faces, process=False)
+    keep = np.linalg.norm(crop.vertices - landmarks["cymba_conchae"], axis=1) > 6.0
+    holed = offset.submesh([np.flatnonzero(keep[crop.faces].all(axis=1))], append=True)
+    completed = completed_where_blind(holed, crop)
+    assert np.array_equal(completed.faces, crop.faces)
+    moved = np.linalg.norm(completed.vertices - crop.vertices, axis=1)
+    blind = ~seen_by(holed.vertices, crop.vertices)
+    assert blind.sum() > 10 and np.all(moved[blind] == 0.0)
+    assert np.median(moved[~blind]) == pytest.approx(0.3, abs=0.03)
+    rows = {row["region"]: row for row in pinna_coverage(crop.vertices, crop.faces, completed.vertices, landmarks)}
+    assert rows["cymba conchae"]["seen_share"] == pytest.approx(1.0)

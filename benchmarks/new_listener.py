@@ -413,11 +413,6 @@ def report(subject: str, seed: int) -> dict:
             summary[key] = bool(
                 abs(summary[f"{layered}_paper_delta_qe_pp"]) < abs(summary[f"{bare}_paper_delta_qe_pp"])
                 and abs(summary[f"{layered}_paper_delta_pe_deg"]) < abs(summary[f"{bare}_paper_delta_pe_deg"]))
-    if summary.get("hard_oracle_placed_paper_delta_qe_pp") is not None and summary.get("hard_placed_paper_delta_qe_pp"):
-        # what completing the hard scans where they were blind takes off the placed hard listener's gap (share of it)
-        summary["unseen_share_of_hard_placed_gap"] = {
-            quantity: round(1.0 - summary[f"hard_oracle_placed_paper_delta_{quantity}"]
-                            / summary[f"hard_placed_paper_delta_{quantity}"], 3) for quantity in ("qe_pp", "pe_deg")}
     kept_file = KEPT / f"{subject}.json"
     if kept_file.is_file():
         # figures of a run folder this machine does not have (results/ is not committed: the fits, the frame, the
@@ -430,6 +425,12 @@ def report(subject: str, seed: int) -> dict:
             summary["carried_from_kept"] = carried
             print(f"carried from the kept {kept_file.name} (their run folders are not on this machine): "
                   f"{', '.join(carried)}", flush=True)
+    # after the carry: on a fresh clone both figures may come from the kept JSON
+    if summary.get("hard_oracle_placed_paper_delta_qe_pp") is not None and summary.get("hard_placed_paper_delta_qe_pp"):
+        # what completing the hard scans where they were blind takes off the placed hard listener's gap (share of it)
+        summary["unseen_share_of_hard_placed_gap"] = {
+            quantity: round(1.0 - summary[f"hard_oracle_placed_paper_delta_{quantity}"]
+                            / summary[f"hard_placed_paper_delta_{quantity}"], 3) for quantity in ("qe_pp", "pe_deg")}
     print(f"{subject} as a new listener: {json.dumps({k: v for k, v in summary.items() if not isinstance(v, dict)})}",
           flush=True)
     if summary.get("paper_delta_qe_pp") is not None:

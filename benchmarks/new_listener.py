@@ -21,8 +21,8 @@ and its head as scanned solved the same way (listener.scanned_head), then judged
 - with --hard --placed --no-layer, the listener <subject>_hard_ppm_placed: the same placed scans without the layer
   (whether the layer brings the placed hard listener nearer its own ears: hard_placed_layer_nearer);
 - with --hard --oracle, the listener <subject>_hard_oracle_placed: the placed, layered listener whose hard scans are
-  completed by the clean crop's faces they never saw (no scan point within 2 mm): what the parts the scans were blind
-  to cost the hard listener (unseen_share_of_hard_placed_gap: the share of hard_placed's both-ear delta QE and PE that
+  completed by the truth where they were blind (reporting.stitched_region.completed_where_blind: the clean crop, its
+  vertices the scan saw moved onto the scan): what the parts the scans were blind to cost the hard listener (unseen_share_of_hard_placed_gap: the share of hard_placed's both-ear delta QE and PE that
   the completed scans take away);
 - every solved personal head's ears against the head as scanned (<kind>_ears_to_scanned, mm).
 
@@ -66,6 +66,9 @@ STORE = KEPT / "steps_dataset_grid"
 #: layered listener whose hard scans are completed by the truth where they were blind (hard_oracle_placed).
 HARD_KINDS = ("hard", "hard_ppm", "hard_placed", "hard_ppm_placed", "hard_oracle_placed")
 DATASET_SOFA = "hrir_mesh2hrtf_48k.sofa"
+#: Keys of the kept JSON that the report works out itself after the carry (from fresh or carried figures): never
+#: carried.
+DERIVED_AFTER_CARRY = ("carried_from_kept", "unseen_share_of_hard_placed_gap")
 
 
 def evaluation_hard_scan() -> dict:
@@ -115,7 +118,8 @@ def hard_ear_scans(subject: str, seed: int, pose: np.ndarray, oracle: bool = Fal
     """Both ears of the subject scanned at the ``hard`` level of ppm/data/scan_defects.yaml (occlusion holes, 2 mm
     sampling, 0.5 mm noise, outliers, spikes, a partial crop), each its own fixed draw (:func:`hard_scan_mm`); with
     ``oracle`` each completed where it was blind by the clean crop (reporting.stitched_region.completed_where_blind:
-    what the listener loses to the parts its scans never saw). Posed and written in centimetres as the head is; returns side -> file."""
+    what the listener loses to the parts its scans never saw). Posed and written in centimetres as the head is;
+    returns side -> file."""
     import trimesh  # noqa: PLC0415
 
     from core.atomic import atomic_path  # noqa: PLC0415
@@ -132,8 +136,7 @@ def hard_ear_scans(subject: str, seed: int, pose: np.ndarray, oracle: bool = Fal
             crop = trimesh.load(SONICOM / subject / f"pinna_{side}_crop.ply", process=False, force="mesh")
             scan = completed_where_blind(scan, crop)
         posed = (np.asarray(scan.vertices) @ pose[:3, :3].T + pose[:3, 3]) / 10.0
-        WORK.mkdir(parents=True, exist_ok=True)
-        with atomic_path(path) as temporary:
+        with atomic_path(path) as temporary:  # makes WORK too
             trimesh.Trimesh(posed, scan.faces, process=False).export(temporary, file_type="ply")
     return paths
 
@@ -419,14 +422,15 @@ def report(subject: str, seed: int) -> dict:
         # remesh of an earlier run) are carried from the kept JSON and named, not dropped
         kept = json.loads(kept_file.read_text())
         carried = sorted(key for key in kept if summary.get(key) is None and kept[key] is not None
-                         and key != "carried_from_kept")
+                         and key not in DERIVED_AFTER_CARRY)
         summary.update({key: kept[key] for key in carried})
         if carried:
             summary["carried_from_kept"] = carried
             print(f"carried from the kept {kept_file.name} (their run folders are not on this machine): "
                   f"{', '.join(carried)}", flush=True)
     # after the carry: on a fresh clone both figures may come from the kept JSON
-    if summary.get("hard_oracle_placed_paper_delta_qe_pp") is not None and summary.get("hard_placed_paper_delta_qe_pp"):
+    if (summary.get("hard_oracle_placed_paper_delta_qe_pp") is not None
+            and summary.get("hard_placed_paper_delta_qe_pp")):
         # what completing the hard scans where they were blind takes off the placed hard listener's gap (share of it)
         summary["unseen_share_of_hard_placed_gap"] = {
             quantity: round(1.0 - summary[f"hard_oracle_placed_paper_delta_{quantity}"]
@@ -464,9 +468,9 @@ def main() -> None:
                         "<subject>_hard_ppm_placed), the same hard ear scans placed by the head's frame (they share the "
                         "head scan's coordinates) instead of registered")
     parser.add_argument("--oracle", action="store_true",
-                        help="with --hard: the listener <subject>_hard_oracle_placed, the placed hard ear scans with "
-                        "the clean crop's faces they never saw added (how much of the hard listener's gap the unseen "
-                        "parts cost)")
+                        help="with --hard: the listener <subject>_hard_oracle_placed, the placed hard ear scans "
+                        "completed by the clean crop where they were blind (how much of the hard listener's gap the "
+                        "unseen parts cost)")
     parser.add_argument("--until", default=None, help="run only up to this output of the listener (e.g. "
                         "remesh/validation.json: fits, stitch and remesh without the solve)")
     args = parser.parse_args()

@@ -30,12 +30,12 @@ def completed_where_blind(scan: trimesh.Trimesh, truth: trimesh.Trimesh,
     its closest point on the scan's surface. The scan's noise where it saw, the truth where it was blind (holes, the
     partial crop, the back of the flap), on the truth's one connected surface, so that the pinna's segmentation keeps
     all of it. What a better scanner would have delivered: it tells what the blind parts cost, no one gets it."""
-    vertices = np.asarray(truth.vertices, np.float64)
-    closest, _, triangle = trimesh.proximity.closest_point(scan, vertices)
-    facing = np.einsum("ij,ij->i", scan.face_normals[triangle], truth.vertex_normals)
-    moved = seen_by(scan.vertices, vertices) & (facing > np.cos(np.radians(normal_agreement_deg)))
-    completed = vertices.copy()
-    completed[moved] = closest[moved]
+    completed = np.asarray(truth.vertices, np.float64).copy()
+    seen = np.flatnonzero(seen_by(scan.vertices, completed))  # only these can move: the rest is blind
+    closest, _, triangle = trimesh.proximity.closest_point(scan, completed[seen])
+    facing = np.einsum("ij,ij->i", scan.face_normals[triangle], truth.vertex_normals[seen])
+    moved = facing > np.cos(np.radians(normal_agreement_deg))
+    completed[seen[moved]] = closest[moved]
     return trimesh.Trimesh(completed, truth.faces, process=False)
 
 

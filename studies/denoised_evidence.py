@@ -93,15 +93,18 @@ def main() -> None:
         scan = prepare_target(scan_path, side=side, segment=False)  # the layer's evidence, as the workflow takes it
         raw = np.asarray(scan.mesh.vertices)
         in_head = MIRROR if side == "right" else np.eye(3)  # the fits' left-ear frame back to the head's
-        variants = {"raw scan": raw, **{f"projected, {r:g} mm": mls_projected(raw, np.asarray(scan.mesh.vertex_normals), r)
-                                        for r in RADII_MM}}
+        normals = np.asarray(scan.mesh.vertex_normals)
+        variants = {"raw scan": raw, **{f"projected, {r:g} mm": mls_projected(raw, normals, r) for r in RADII_MM}}
         result[side] = {"points": {}, "layer": {}}
         for name, points in variants.items():
             distance = trimesh.proximity.closest_point(scanned_head, points @ in_head)[1]
             result[side]["points"][name] = [round(float(np.median(distance)), 3),
                                             round(float(np.percentile(distance, 95)), 3)]
-            mesh = trimesh.Trimesh(points, scan.mesh.faces, process=False)
-            evidence = Target(points, np.asarray(mesh.vertex_normals), mesh, f"{scan_path} ({name})")
+            if points is raw:  # the workflow's own evidence (its outliers removed from the points), as the pinna was laid
+                evidence = scan
+            else:
+                mesh = trimesh.Trimesh(points, scan.mesh.faces, process=False)
+                evidence = Target(points, np.asarray(mesh.vertex_normals), mesh, f"{scan_path} ({name})")
             layer = personal_detail(vertices, faces, layer_evidence(evidence, settings), settings)
             layered = ROOT / "results" / "studies" / "denoised_evidence" / f"{side}_{name.replace(' ', '_')}.ply"
             layered.parent.mkdir(parents=True, exist_ok=True)

@@ -563,6 +563,22 @@ class RunPlan:
         return bool((self.config.get("listener") or {}).get("personal_detail", True))
 
     @property
+    def listener_detail_settings(self) -> dict:
+        """Settings of the personal-detail layer that a listener's fits are laid with instead of the packaged ones
+        (config ``listener.personal_detail_settings``, names of ppm/data/personal_detail.yaml); checked here, so that a
+        misspelt name stops the run before any job starts."""
+        from ppm.align.detail import DetailSettings  # noqa: PLC0415
+        from ppm.errors import PpmError  # noqa: PLC0415
+
+        settings = dict((self.config.get("listener") or {}).get("personal_detail_settings") or {})
+        try:
+            DetailSettings.packaged(**settings)
+        except (PpmError, TypeError, ValueError) as error:
+            raise RunConfigError(f"config listener.personal_detail_settings: {error}; use the names and values of "
+                             "ppm/data/personal_detail.yaml, or leave it empty for the packaged layer") from error
+        return settings
+
+    @property
     def listener_scanned_head(self) -> bool:
         """Whether a listener's head as scanned is solved too (config ``listener.scanned_head``): the paper
         protocol's reference in a validation run."""

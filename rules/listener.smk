@@ -120,6 +120,8 @@ rule listener_detail:
     params:
         title=lambda wc: f"{wc.listener} {wc.side} ear",
         side=lambda wc: wc.side,
+        # config listener.personal_detail_settings: the layer's settings that differ from the packaged ones
+        detail_settings=RUN.listener_detail_settings,
     threads: 1
     resources:
         mem_mb=measured_mem_mb("personal_detail"),

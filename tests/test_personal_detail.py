@@ -257,3 +257,25 @@ def test_the_layer_s_evidence_takes_a_reconstruction_s_fill_of_a_hole_and_not_it
     np.testing.assert_array_equal(layer.displacement_mm[rim_vertices(faces)], 0.0)
     moved = trimesh.Trimesh(vertices + layer.displacement_mm, faces, process=False).face_normals
     assert np.einsum("ij,ij->i", moved, trimesh.Trimesh(vertices, faces, process=False).face_normals).min() > 0.0
+
+
+def test_the_layer_ends_no_more_supple_than_the_scan_s_noise(posed):
+    """A scan of the PPM itself with 0.5 mm noise along its normals (the hard level's): with noise_stiffness_factor 1
+    the schedule ends at the scan's own noise squared (read from the scan: 0.45-0.65 mm) instead of 0.1 mm², and the
+    layer strays less from the truth (the PPM itself); on the same scan without noise the schedule stays."""
+    vertices, faces, normals = posed
+    rng = np.random.default_rng(2)
+    noisy = vertices + rng.normal(0.0, 0.5, len(vertices))[:, None] * normals
+    target = target_from_mesh(trimesh.Trimesh(noisy, faces, process=False), "noisy PPM scan")
+    packaged = personal_detail(vertices, faces, target)
+    floored = personal_detail(vertices, faces, target, DetailSettings.packaged(noise_stiffness_factor=1.0))
+    assert packaged.noise_mm is None and packaged.stiffness_mm2 == DetailSettings.packaged().stiffness_mm2
+    assert 0.45 <= floored.noise_mm <= 0.65
+    assert floored.stiffness_mm2[-1] == pytest.approx(floored.noise_mm ** 2, abs=1e-4)
+    assert floored.summary()["stiffness_end_mm2"] == floored.stiffness_mm2[-1]
+    off = {name: np.median(np.linalg.norm(run.displacement_mm, axis=1))
+           for name, run in (("packaged", packaged), ("floored", floored))}
+    assert off["floored"] < 0.8 * off["packaged"]
+    clean = target_from_mesh(trimesh.Trimesh(vertices, faces, process=False), "clean PPM scan")
+    assert personal_detail(vertices, faces, clean, DetailSettings.packaged(noise_stiffness_factor=1.0)
+                           ).stiffness_mm2 == DetailSettings.packaged().stiffness_mm2

@@ -198,6 +198,16 @@ def test_a_listener_is_solved_as_its_own_subject_on_the_full_grid(in_root, tmp_p
                            listener={"personal_detail": False, "comparison_sets": []}))
     assert bare.listener_pinna("anna", "right") == "results/listeners/anna/align/right/aligned_pinna.ply"
     assert not bare.listener_personal_detail
+    # listener.personal_detail_settings: the layer laid with settings other than the packaged ones, names checked
+    assert run.listener_detail_settings == {}
+    floored = RunPlan(_config(listeners=[{"name": "anna", "head": str(scan)}],
+                              listener={"personal_detail_settings": {"noise_stiffness_factor": 1.0},
+                                        "comparison_sets": []}))
+    assert floored.listener_detail_settings == {"noise_stiffness_factor": 1.0}
+    misspelt = RunPlan(_config(listeners=[{"name": "anna", "head": str(scan)}],
+                               listener={"personal_detail_settings": {"noise_stiffnes": 1.0}, "comparison_sets": []}))
+    with pytest.raises(RunConfigError, match="personal_detail_settings.*noise_stiffnes"):
+        misspelt.listener_detail_settings
     # listener.scanned_head (a validation run): the head as scanned, remeshed as the personal head, solved beside it
     assert "results/listeners/anna/hrtf/scanned/HRIR.sofa" not in run.final_output()
     validating = RunPlan(_config(listeners=[{"name": "anna", "head": str(scan)}],

@@ -28,6 +28,7 @@ from ..errors import PpmError
 from ..geodesic import rim_vertices  # noqa: F401  (the layer holds the rim; tests import it from here)
 from ..model import DETAIL_KEY  # the shape key that holds the layer in a .blend
 from .report import boundary_samples
+from .scan_noise import scan_noise_mm
 from .target import Target, surface_without_outliers
 
 
@@ -53,6 +54,7 @@ class DetailSettings:
     evidence_fade_mm: float | None = None
     fold_smoothing_rounds: int = 0
     hole_fill_mm: float | None = None
+    noise_stiffness_factor: float | None = None
 
     @classmethod
     def packaged(cls, **overrides) -> "DetailSettings":
@@ -79,6 +81,9 @@ class PersonalDetail:
     halvings : rounds of halving the displacements around folded faces.
     smoothings : rounds of smoothing the field around folded faces (before any halving).
     stages : stiffness stages of the schedule kept (fewer than the schedule's where the roughness guard stopped it).
+    noise_mm : the scan's noise (:func:`ppm.align.scan_noise.scan_noise_mm`, mm) where ``noise_stiffness_factor``
+        asked for it, else None.
+    stiffness_mm2 : the schedule laid (mm²): the packaged one, ended at the noise's floor where there is one.
     """
 
     displacement_mm: np.ndarray
@@ -86,6 +91,8 @@ class PersonalDetail:
     halvings: int
     stages: int = 0
     smoothings: int = 0
+    noise_mm: float | None = None
+    stiffness_mm2: tuple[float, ...] = ()
 
     @property
     def size_mm(self) -> np.ndarray:
@@ -99,7 +106,9 @@ class PersonalDetail:
                 "displacement_median_mm": round(float(np.median(size)), 4),
                 "displacement_p95_mm": round(float(np.percentile(size, 95)), 4),
                 "displacement_max_mm": round(float(size.max()), 4), "fold_halvings": self.halvings,
-                "fold_smoothings": self.smoothings, "stiffness_stages": self.stages}
+                "fold_smoothings": self.smoothings, "stiffness_stages": self.stages,
+                "scan_noise_mm": None if self.noise_mm is None else round(self.noise_mm, 4),
+                "stiffness_end_mm2": self.stiffness_mm2[-1] if self.stiffness_mm2 else None}
 
 
 def joined_evidence(scan: Target, fill: trimesh.Trimesh) -> Target:
@@ -111,7 +120,8 @@ def joined_evidence(scan: Target, fill: trimesh.Trimesh) -> Target:
     joined = trimesh.util.concatenate([trimesh.Trimesh(scan.mesh.vertices, scan.mesh.faces, process=False),
                                        trimesh.Trimesh(fill.vertices, fill.faces, process=False)])
     return Target(np.asarray(joined.vertices), np.asarray(joined.vertex_normals), joined,
-                  f"{scan.source} with its reconstruction's fill of {len(fill.faces)} faces", scan.warnings, scan.pose)
+                  f"{scan.source} with its reconstruction's fill of {len(fill.faces)} faces", scan.warnings, scan.pose,
+                  noise_mm=scan_noise_mm(scan.mesh.vertices))  # the scan's own noise, not the smooth fill's
 
 
 def _edges(faces: np.ndarray) -> np.ndarray:
@@ -266,6 +276,17 @@ def _trusted_pairs(points_mm: np.ndarray, normals: np.ndarray, closest: np.ndarr
     return trusted
 
 
+def noise_schedule(stiffness_mm2: tuple[float, ...], noise_mm: float, factor: float) -> tuple[float, ...]:
+    """The stiffness schedule (mm², stiff to supple) ended at ``factor`` x ``noise_mm``² where that lies above its
+    last stage: the stages stiffer than that floor, then the floor itself. A field more supple than the scan's noise
+    allows follows the noise (the `hard` level's 0.5 mm at 0.1 mm²); on a clean scan the floor lies below the
+    schedule's end and the schedule stays."""
+    floor = factor * noise_mm * noise_mm
+    if floor <= stiffness_mm2[-1]:
+        return tuple(stiffness_mm2)
+    return tuple(s for s in stiffness_mm2 if s > floor) + (round(floor, 4),)
+
+
 def evidence_fade(vertices_mm: np.ndarray, evidence: np.ndarray, fade_mm: float) -> np.ndarray:
     """Per vertex, 1 within ``fade_mm`` (straight line, mm) of a vertex with evidence (``evidence``: bool per vertex),
     falling linearly to 0 at twice that: the field kept near what the scan shows, the PPM's shape where it shows
@@ -343,10 +364,15 @@ def personal_detail(vertices_mm: np.ndarray, faces: np.ndarray, target: Target,
             return closest_facing(mesh, points_mm, normals, settings.reach_mm, settings.normal_agreement_deg)
         return closest_within(mesh, points_mm, settings.reach_mm)
 
+    noise = None
+    schedule = tuple(settings.stiffness_mm2)
+    if settings.noise_stiffness_factor is not None:
+        noise = target.noise_mm if target.noise_mm is not None else scan_noise_mm(scan_points)
+        schedule = noise_schedule(schedule, noise, settings.noise_stiffness_factor)
     roughness_cap = (None if settings.roughness_limit_deg is None
                      else surface_roughness_deg(vertices_mm, faces) + settings.roughness_limit_deg)
     stages = 0
-    for stiffness in settings.stiffness_mm2:
+    for stiffness in schedule:
         before = (displacement.copy(), trusted.copy())
         for _ in range(max(1, settings.iterations_per_stiffness)):
             moved = trimesh.Trimesh(vertices_mm + displacement, faces, process=False)
@@ -384,7 +410,7 @@ def personal_detail(vertices_mm: np.ndarray, faces: np.ndarray, target: Target,
     displacement *= np.minimum(1.0, settings.max_displacement_mm / np.maximum(size, 1e-12))[:, None]
     displacement, halvings, smoothings = unfold(vertices_mm, faces, displacement, taper <= 0.0, settings)
     return PersonalDetail(displacement_mm=displacement, trusted=trusted, halvings=halvings, stages=stages,
-                          smoothings=smoothings)
+                          smoothings=smoothings, noise_mm=noise, stiffness_mm2=schedule[:stages])
 
 
 def add_personal_detail(model, target: Target, settings: DetailSettings | None = None,

@@ -48,6 +48,9 @@ class Target:
     scan : trimesh.Trimesh or None
         The whole scan the pinna region was cut from, in the same frame (mm, project frame, left ear): what
         :mod:`ppm.align.widen` fits again on when the segmentation left out part of the pinna. None when not kept.
+    noise_mm : float or None
+        The scan's own noise (:func:`ppm.align.scan_noise.scan_noise_mm`, mm) where the surface holds more than the
+        scan (the personal-detail layer's evidence joined with a reconstruction's fill); None: judge it from ``mesh``.
     """
 
     points_mm: np.ndarray
@@ -57,6 +60,7 @@ class Target:
     warnings: tuple[str, ...] = ()
     pose: dict | None = None
     scan: trimesh.Trimesh | None = None
+    noise_mm: float | None = None
 
 
 def remove_outliers(points_mm: np.ndarray, neighbours: int = 8) -> np.ndarray:

@@ -27,7 +27,8 @@ from stitching.reconstruction import layer_evidence  # noqa: E402
 inputs, out = snakemake.input, snakemake.output  # noqa: F821
 model = PinnaModel.from_blend(inputs.blend)
 target = prepare_target(inputs.target, side="left", segment=False)  # prepared already
-settings = DetailSettings.packaged()
+# the packaged settings, or a listener's (config listener.personal_detail_settings); the evaluation's controls: packaged
+settings = DetailSettings.packaged(**(snakemake.params.get("detail_settings") or {}))  # noqa: F821
 scan = prepare_target(inputs.evidence, side=snakemake.params.side, segment=False)  # noqa: F821  (whole scan)
 evidence = layer_evidence(scan, settings)  # with its reconstruction's fill of its holes where hole_fill_mm asks
 detail, summary = add_personal_detail(model, evidence, settings, judged_on=target)

@@ -27,6 +27,8 @@ and its head as scanned solved the same way (listener.scanned_head), then judged
 - with --hard --noise-floor, the listener <subject>_hard_noise_placed: the placed, layered listener whose layer ends
   its stiffness schedule at the scan's own noise (listener.personal_detail_settings: noise_stiffness_factor 1;
   studies/noise_stiffness.py): whether that geometric gain is an acoustic one;
+- with --hard --supple-end, the listener <subject>_hard_supple_placed: the same, its layer's schedule taken one stage
+  further, to 0.03 mm² (the opposite direction: a stiffer end cost QE twice);
 - every solved personal head's ears against the head as scanned (<kind>_ears_to_scanned, mm).
 
 The steps are kept in benchmarks/results/new_listener/steps_dataset_grid as they finish, so that a run stopped on the
@@ -34,7 +36,7 @@ way (or a fresh clone) continues from them. The posed head and the run's outputs
 results/listeners/ (not committed: the head is the dataset's).
 
 Run: .venv/bin/python benchmarks/new_listener.py [--subject P143] [--seed 7] [--cores 2]
-     [--hard [--no-layer] [--placed] [--oracle] [--noise-floor]]
+     [--hard [--no-layer] [--placed] [--oracle] [--noise-floor | --supple-end]]
      [--until remesh/validation.json] [--report-only]
 Last line: JSON with paper_delta_qe_pp, paper_delta_pe_deg, paper_left_delta_qe_pp, paper_right_delta_qe_pp,
 hard_paper_delta_qe_pp, hard_paper_delta_pe_deg, hard_ppm_paper_delta_qe_pp, hard_ppm_paper_delta_pe_deg,
@@ -67,9 +69,12 @@ WORK = ROOT / "results" / "new_listener"
 STORE = KEPT / "steps_dataset_grid"
 #: The listeners whose ears are fitted to hard scans: registered or placed, with the layer or without; and the placed,
 #: layered listener whose hard scans are completed by the truth where they were blind (hard_oracle_placed).
-HARD_KINDS = ("hard", "hard_ppm", "hard_placed", "hard_ppm_placed", "hard_oracle_placed", "hard_noise_placed")
-#: The layer's settings of the listener hard_noise_placed (ppm/data/personal_detail.yaml names).
-NOISE_FLOOR_SETTINGS = {"noise_stiffness_factor": 1.0}
+HARD_KINDS = ("hard", "hard_ppm", "hard_placed", "hard_ppm_placed", "hard_oracle_placed", "hard_noise_placed",
+              "hard_supple_placed")
+#: The layer's settings (ppm/data/personal_detail.yaml names) of the placed hard listeners hard_<variant>_placed whose
+#: layer differs from the packaged one.
+LAYER_VARIANTS = {"noise": {"noise_stiffness_factor": 1.0},
+                  "supple": {"stiffness_mm2": [10.0, 2.0, 0.5, 0.1, 0.03]}}
 DATASET_SOFA = "hrir_mesh2hrtf_48k.sofa"
 #: Keys of the kept JSON that the report works out itself after the carry (from fresh or carried figures): never
 #: carried.
@@ -153,59 +158,59 @@ def snakemake(args: list[str]) -> None:
 
 
 def listener_kind(hard: bool = False, layer: bool = True, placed: bool = False, oracle: bool = False,
-                  noise: bool = False) -> str:
+                  variant: str | None = None) -> str:
     """Which of the subject's listeners (named <subject>_<kind>): new (the clean head scan), hard (hard ear scans,
     registered onto the head's ears), hard_ppm (the same, no personal-detail layer), hard_placed (the same hard ear
     scans placed by the head's frame: they share the head scan's coordinates, as the ear regions of one scan do),
     hard_ppm_placed (the placed scans, no layer), hard_oracle_placed (the placed, layered listener whose hard scans
-    are completed by the clean crop where they were blind), hard_noise_placed (the placed, layered listener whose
-    layer ends at the scan's noise: :data:`NOISE_FLOOR_SETTINGS`)."""
+    are completed by the clean crop where they were blind), hard_<variant>_placed (the placed, layered listener whose
+    layer is laid with :data:`LAYER_VARIANTS` [variant]: noise, ended at the scan's noise; supple, a stage further)."""
     if not hard:
         return "new"
     if oracle:
         return "hard_oracle_placed"
-    if noise:
-        return "hard_noise_placed"
+    if variant:
+        return f"hard_{variant}_placed"
     return ("hard" if layer else "hard_ppm") + ("_placed" if placed else "")
 
 
 def run(subject: str, seed: int, cores: int, targets: list[str] | None = None, hard: bool = False,
-        layer: bool = True, placed: bool = False, oracle: bool = False, noise: bool = False) -> None:
+        layer: bool = True, placed: bool = False, oracle: bool = False, variant: str | None = None) -> None:
     """The template without the subject, then the listener's whole run (NumCalc), or only ``targets``; with
     ``hard`` the listener whose ear scans are the hard ones (<subject>_hard; without ``layer`` <subject>_hard_ppm;
     with ``placed`` <subject>_hard_placed, the ear scans placed by the head's frame; with ``oracle``
     <subject>_hard_oracle_placed)."""
-    config = write_config(subject, seed, hard, layer, placed, oracle, noise)
+    config = write_config(subject, seed, hard, layer, placed, oracle, variant)
     snakemake(["--cores", str(cores), "--configfile", str(config.relative_to(ROOT)), "--rerun-triggers", "mtime",
                "--rerun-incomplete",
                *(["--nolock"] if hard else []), *(["--", *targets] if targets else [])])
 
 
 def write_config(subject: str, seed: int, hard: bool = False, layer: bool = True, placed: bool = False,
-                 oracle: bool = False, noise: bool = False) -> Path:
+                 oracle: bool = False, variant: str | None = None) -> Path:
     """The run's config (results/new_listener/config.yaml; config_hard.yaml for the listener <subject>_hard, whose
     ears are fitted to their hard scans, given as the listener's separate ear scans, and whose reference is
     <subject>_new's head as scanned; config_hard_ppm.yaml for the same without the layer; config_hard_placed.yaml for
     the hard ear scans placed by the head's frame, ear_scan_frame: head; config_hard_oracle_placed.yaml for the placed
-    scans completed by the truth where they were blind; config_hard_noise_placed.yaml for the placed scans, the layer
-    ended at their noise), the template without the subject built first."""
+    scans completed by the truth where they were blind; config_hard_<variant>_placed.yaml for the placed scans, the
+    layer laid with LAYER_VARIANTS[variant]), the template without the subject built first."""
     head, pose = posed_head(subject, seed)
     template = f"results/templates/without_{subject}/template_left.ply"
     if not (ROOT / template).is_file():
         snakemake(["--cores", "1", "--config", f"data_root={SONICOM}", "--", template])
-    kind = listener_kind(hard, layer, placed, oracle, noise)
+    kind = listener_kind(hard, layer, placed, oracle, variant)
     listener = {"name": f"{subject}_{kind}", "head": str(head.relative_to(ROOT))}
     if hard:
         ears = hard_ear_scans(subject, seed, pose, oracle)
         listener.update({f"{side}_ear": str(path.relative_to(ROOT)) for side, path in ears.items()})
-        if placed or oracle or noise:  # written with the head's pose and unit: in the head scan's own coordinates
+        if placed or oracle or variant:  # written with the head's pose and unit: in the head scan's own coordinates
             listener["ear_scan_frame"] = "head"
     config = WORK / ("config.yaml" if kind == "new" else f"config_{kind}.yaml")
     config.write_text(json.dumps({
         "listeners": [listener],
         "listener": {"template": str(Path(template).parent), "comparison_sets": [], "personal_detail": layer,
                      "scanned_head": not hard, "dataset_grid": str(SONICOM / subject / DATASET_SOFA),
-                     **({"personal_detail_settings": NOISE_FLOOR_SETTINGS} if noise else {})},
+                     **({"personal_detail_settings": LAYER_VARIANTS[variant]} if variant else {})},
         "hrtf": {"enabled": True, "solver": "numcalc", "frequencies_hz": "evaluation",
                  "step_store": str(STORE.relative_to(ROOT))},
     }, indent=1))
@@ -485,6 +490,9 @@ def main() -> None:
     parser.add_argument("--noise-floor", action="store_true",
                         help="with --hard: the listener <subject>_hard_noise_placed, the placed hard ear scans with "
                         "the layer's stiffness schedule ended at their own noise (noise_stiffness_factor 1)")
+    parser.add_argument("--supple-end", action="store_true",
+                        help="with --hard: the listener <subject>_hard_supple_placed, the placed hard ear scans with "
+                        "the layer's stiffness schedule taken a stage further, to 0.03 mm²")
     parser.add_argument("--until", default=None, help="run only up to this output of the listener (e.g. "
                         "remesh/validation.json: fits, stitch and remesh without the solve)")
     args = parser.parse_args()
@@ -495,11 +503,13 @@ def main() -> None:
             parser.error("--placed and --oracle go with --hard")
         if args.oracle and args.no_layer:
             parser.error("--oracle is the placed listener with the layer")
-        if args.noise_floor and (not args.hard or args.no_layer or args.oracle):
-            parser.error("--noise-floor goes with --hard, with the layer, without --oracle (it is placed)")
-        name = f"{args.subject}_{listener_kind(args.hard, not args.no_layer, args.placed, args.oracle, args.noise_floor)}"
+        variant = "noise" if args.noise_floor else "supple" if args.supple_end else None
+        if variant and (not args.hard or args.no_layer or args.oracle or (args.noise_floor and args.supple_end)):
+            parser.error("--noise-floor or --supple-end (one) goes with --hard, with the layer, without --oracle "
+                         "(it is placed)")
+        name = f"{args.subject}_{listener_kind(args.hard, not args.no_layer, args.placed, args.oracle, variant)}"
         run(args.subject, args.seed, args.cores, [f"results/listeners/{name}/{args.until}"] if args.until else None,
-            args.hard, not args.no_layer, args.placed, args.oracle, args.noise_floor)
+            args.hard, not args.no_layer, args.placed, args.oracle, variant)
     print(json.dumps(report(args.subject, args.seed)))
 
 

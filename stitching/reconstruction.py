@@ -164,4 +164,10 @@ def layer_evidence(scan: Target, detail_settings: DetailSettings) -> Target:
         log.warning("%s: no reconstruction's fill for the personal-detail layer (%s); the scan alone is its "
                     "evidence", scan.source, error)
         return dataclasses.replace(scan, warnings=scan.warnings + (f"no hole fill: {error}",))
-    return joined_evidence(scan, fill)
+    joined = joined_evidence(scan, fill)
+    if detail_settings.noise_stiffness_factor is None:
+        return joined
+    from ppm.align.scan_noise import scan_noise_mm  # noqa: PLC0415
+
+    # the schedule's floor asks for the scan's own noise, not the smooth fill's
+    return dataclasses.replace(joined, noise_mm=scan_noise_mm(scan.mesh.vertices))

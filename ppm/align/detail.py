@@ -28,7 +28,7 @@ from ..errors import PpmError
 from ..geodesic import rim_vertices  # noqa: F401  (the layer holds the rim; tests import it from here)
 from ..model import DETAIL_KEY  # the shape key that holds the layer in a .blend
 from .report import boundary_samples
-from .scan_noise import NEIGHBOURS, scan_noise_mm
+from .scan_noise import scan_noise_mm
 from .target import Target, surface_without_outliers
 
 
@@ -120,9 +120,7 @@ def joined_evidence(scan: Target, fill: trimesh.Trimesh) -> Target:
     joined = trimesh.util.concatenate([trimesh.Trimesh(scan.mesh.vertices, scan.mesh.faces, process=False),
                                        trimesh.Trimesh(fill.vertices, fill.faces, process=False)])
     return Target(np.asarray(joined.vertices), np.asarray(joined.vertex_normals), joined,
-                  f"{scan.source} with its reconstruction's fill of {len(fill.faces)} faces", scan.warnings, scan.pose,
-                  # the scan's own noise, not the smooth fill's (None for a scan too small to judge it)
-                  noise_mm=scan_noise_mm(scan.mesh.vertices) if len(scan.mesh.vertices) > NEIGHBOURS else None)
+                  f"{scan.source} with its reconstruction's fill of {len(fill.faces)} faces", scan.warnings, scan.pose)
 
 
 def _edges(faces: np.ndarray) -> np.ndarray:

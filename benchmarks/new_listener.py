@@ -29,6 +29,11 @@ and its head as scanned solved the same way (listener.scanned_head), then judged
   studies/noise_stiffness.py): whether that geometric gain is an acoustic one;
 - with --hard --supple-end, the listener <subject>_hard_supple_placed: the same, its layer's schedule taken one stage
   further, to 0.03 mm² (the opposite direction: a stiffer end cost QE twice);
+- with --hard --layer-variant points, the listener <subject>_hard_points_placed: the supple end with the pull of the
+  PPM's vertices towards the scan's triangulated surface weighted 0.3 (forward_weight), so that the scan's points
+  lead rather than the chords between them;
+- with --hard --placed --draw N, the listener <subject>_hard_placed_draw<N>: the placed, layered listener on another
+  draw of the same hard recipe (seed + N): how far a hard listener's figures move with the scans' draw;
 - every solved personal head's ears against the head as scanned (<kind>_ears_to_scanned, mm).
 
 The steps are kept in benchmarks/results/new_listener/steps_dataset_grid as they finish, so that a run stopped on the
@@ -36,7 +41,7 @@ way (or a fresh clone) continues from them. The posed head and the run's outputs
 results/listeners/ (not committed: the head is the dataset's).
 
 Run: .venv/bin/python benchmarks/new_listener.py [--subject P143] [--seed 7] [--cores 2]
-     [--hard [--no-layer] [--placed] [--oracle] [--noise-floor | --supple-end]]
+     [--hard [--no-layer] [--placed] [--oracle] [--noise-floor | --supple-end | --layer-variant NAME] [--draw N]]
      [--until remesh/validation.json] [--report-only]
 Last line: JSON with paper_delta_qe_pp, paper_delta_pe_deg, paper_left_delta_qe_pp, paper_right_delta_qe_pp,
 hard_paper_delta_qe_pp, hard_paper_delta_pe_deg, hard_ppm_paper_delta_qe_pp, hard_ppm_paper_delta_pe_deg,
@@ -70,11 +75,12 @@ STORE = KEPT / "steps_dataset_grid"
 #: The listeners whose ears are fitted to hard scans: registered or placed, with the layer or without; and the placed,
 #: layered listener whose hard scans are completed by the truth where they were blind (hard_oracle_placed).
 HARD_KINDS = ("hard", "hard_ppm", "hard_placed", "hard_ppm_placed", "hard_oracle_placed", "hard_noise_placed",
-              "hard_supple_placed")
+              "hard_supple_placed", "hard_points_placed", "hard_placed_draw1")
 #: The layer's settings (ppm/data/personal_detail.yaml names) of the placed hard listeners hard_<variant>_placed whose
 #: layer differs from the packaged one.
 LAYER_VARIANTS = {"noise": {"noise_stiffness_factor": 1.0},
-                  "supple": {"stiffness_mm2": [10.0, 2.0, 0.5, 0.1, 0.03]}}
+                  "supple": {"stiffness_mm2": [10.0, 2.0, 0.5, 0.1, 0.03]},
+                  "points": {"stiffness_mm2": [10.0, 2.0, 0.5, 0.1, 0.03], "forward_weight": 0.3}}
 DATASET_SOFA = "hrir_mesh2hrtf_48k.sofa"
 #: Keys of the kept JSON that the report works out itself after the carry (from fresh or carried figures): never
 #: carried.
@@ -109,27 +115,29 @@ def posed_head(subject: str, seed: int) -> tuple[Path, np.ndarray]:
     return path, pose
 
 
-def hard_scan_mm(subject: str, side: str) -> "trimesh.Trimesh":
+def hard_scan_mm(subject: str, side: str, draw: int = 0) -> "trimesh.Trimesh":
     """The ``side`` ear's fixed hard scan (mm, head frame): the left ear is the evaluation's own hard scan
     (:func:`evaluation_hard_scan`, the seed mixed with the subject's name, evaluation/sonicom/hard_scans/), the right
     ear the same recipe on the mirrored right crop with the seed mixed with "<subject>_right"
-    (stitching.both_ears.right_ear_scan_as_left), mirrored back."""
+    (stitching.both_ears.right_ear_scan_as_left), mirrored back. ``draw`` N > 0: another draw of the same recipe,
+    its seed the recipe's plus N (how far the hard listener's figures move with the scans' noise and holes)."""
     from ppm.align.defects import hard_scan_of  # noqa: PLC0415
     from stitching.both_ears import mirror_left_right, right_ear_scan_as_left  # noqa: PLC0415
 
     recipe = evaluation_hard_scan()
     crop = SONICOM / subject / f"pinna_{side}_crop.ply"
+    seed = int(recipe["seed"]) + int(draw)
     if side == "left":
-        return hard_scan_of(crop, subject, recipe["level"], recipe["seed"])[0]
-    return mirror_left_right(right_ear_scan_as_left(crop, subject, recipe["level"], recipe["seed"]))
+        return hard_scan_of(crop, subject, recipe["level"], seed)[0]
+    return mirror_left_right(right_ear_scan_as_left(crop, subject, recipe["level"], seed))
 
 
-def hard_ear_scans(subject: str, seed: int, pose: np.ndarray, oracle: bool = False) -> dict[str, Path]:
+def hard_ear_scans(subject: str, seed: int, pose: np.ndarray, oracle: bool = False, draw: int = 0) -> dict[str, Path]:
     """Both ears of the subject scanned at the ``hard`` level of ppm/data/scan_defects.yaml (occlusion holes, 2 mm
     sampling, 0.5 mm noise, outliers, spikes, a partial crop), each its own fixed draw (:func:`hard_scan_mm`); with
     ``oracle`` each completed where it was blind by the clean crop (reporting.stitched_region.completed_where_blind:
-    what the listener loses to the parts its scans never saw). Posed and written in centimetres as the head is;
-    returns side -> file."""
+    what the listener loses to the parts its scans never saw); ``draw`` N > 0: another draw (:func:`hard_scan_mm`).
+    Posed and written in centimetres as the head is; returns side -> file."""
     import trimesh  # noqa: PLC0415
 
     from core.atomic import atomic_path  # noqa: PLC0415
@@ -137,11 +145,11 @@ def hard_ear_scans(subject: str, seed: int, pose: np.ndarray, oracle: bool = Fal
 
     paths = {}
     for side in ("left", "right"):
-        path = WORK / f"{subject}_hard{'_oracle' if oracle else ''}_{side}_ear_cm.ply"
+        path = WORK / f"{subject}_hard{'_oracle' if oracle else ''}{f'_draw{draw}' if draw else ''}_{side}_ear_cm.ply"
         paths[side] = path
         if path.is_file():
             continue
-        scan = hard_scan_mm(subject, side)
+        scan = hard_scan_mm(subject, side, draw)
         if oracle:
             crop = trimesh.load(SONICOM / subject / f"pinna_{side}_crop.ply", process=False, force="mesh")
             scan = completed_where_blind(scan, crop)
@@ -158,15 +166,19 @@ def snakemake(args: list[str]) -> None:
 
 
 def listener_kind(hard: bool = False, layer: bool = True, placed: bool = False, oracle: bool = False,
-                  variant: str | None = None) -> str:
+                  variant: str | None = None, draw: int = 0) -> str:
     """Which of the subject's listeners (named <subject>_<kind>): new (the clean head scan), hard (hard ear scans,
     registered onto the head's ears), hard_ppm (the same, no personal-detail layer), hard_placed (the same hard ear
     scans placed by the head's frame: they share the head scan's coordinates, as the ear regions of one scan do),
     hard_ppm_placed (the placed scans, no layer), hard_oracle_placed (the placed, layered listener whose hard scans
     are completed by the clean crop where they were blind), hard_<variant>_placed (the placed, layered listener whose
-    layer is laid with :data:`LAYER_VARIANTS` [variant]: noise, ended at the scan's noise; supple, a stage further)."""
+    layer is laid with :data:`LAYER_VARIANTS` [variant]: noise, ended at the scan's noise; supple, a stage further;
+    points, the supple end led by the scan's points more than by its surface), hard_placed_draw<N> (the placed,
+    layered listener on another draw of the hard scans)."""
     if not hard:
         return "new"
+    if draw:
+        return f"hard_placed_draw{draw}"
     if oracle:
         return "hard_oracle_placed"
     if variant:
@@ -175,35 +187,37 @@ def listener_kind(hard: bool = False, layer: bool = True, placed: bool = False, 
 
 
 def run(subject: str, seed: int, cores: int, targets: list[str] | None = None, hard: bool = False,
-        layer: bool = True, placed: bool = False, oracle: bool = False, variant: str | None = None) -> None:
+        layer: bool = True, placed: bool = False, oracle: bool = False, variant: str | None = None,
+        draw: int = 0) -> None:
     """The template without the subject, then the listener's whole run (NumCalc), or only ``targets``; with
     ``hard`` the listener whose ear scans are the hard ones (<subject>_hard; without ``layer`` <subject>_hard_ppm;
     with ``placed`` <subject>_hard_placed, the ear scans placed by the head's frame; with ``oracle``
     <subject>_hard_oracle_placed)."""
-    config = write_config(subject, seed, hard, layer, placed, oracle, variant)
+    config = write_config(subject, seed, hard, layer, placed, oracle, variant, draw)
     snakemake(["--cores", str(cores), "--configfile", str(config.relative_to(ROOT)), "--rerun-triggers", "mtime",
                "--rerun-incomplete",
                *(["--nolock"] if hard else []), *(["--", *targets] if targets else [])])
 
 
 def write_config(subject: str, seed: int, hard: bool = False, layer: bool = True, placed: bool = False,
-                 oracle: bool = False, variant: str | None = None) -> Path:
+                 oracle: bool = False, variant: str | None = None, draw: int = 0) -> Path:
     """The run's config (results/new_listener/config.yaml; config_hard.yaml for the listener <subject>_hard, whose
     ears are fitted to their hard scans, given as the listener's separate ear scans, and whose reference is
     <subject>_new's head as scanned; config_hard_ppm.yaml for the same without the layer; config_hard_placed.yaml for
     the hard ear scans placed by the head's frame, ear_scan_frame: head; config_hard_oracle_placed.yaml for the placed
     scans completed by the truth where they were blind; config_hard_<variant>_placed.yaml for the placed scans, the
-    layer laid with LAYER_VARIANTS[variant]), the template without the subject built first."""
+    layer laid with LAYER_VARIANTS[variant]; config_hard_placed_draw<N>.yaml for another draw of the hard scans,
+    placed), the template without the subject built first."""
     head, pose = posed_head(subject, seed)
     template = f"results/templates/without_{subject}/template_left.ply"
     if not (ROOT / template).is_file():
         snakemake(["--cores", "1", "--config", f"data_root={SONICOM}", "--", template])
-    kind = listener_kind(hard, layer, placed, oracle, variant)
+    kind = listener_kind(hard, layer, placed, oracle, variant, draw)
     listener = {"name": f"{subject}_{kind}", "head": str(head.relative_to(ROOT))}
     if hard:
-        ears = hard_ear_scans(subject, seed, pose, oracle)
+        ears = hard_ear_scans(subject, seed, pose, oracle, draw)
         listener.update({f"{side}_ear": str(path.relative_to(ROOT)) for side, path in ears.items()})
-        if placed or oracle or variant:  # written with the head's pose and unit: in the head scan's own coordinates
+        if placed or oracle or variant or draw:  # written with the head's pose and unit: in the head scan's own coordinates
             listener["ear_scan_frame"] = "head"
     config = WORK / ("config.yaml" if kind == "new" else f"config_{kind}.yaml")
     config.write_text(json.dumps({
@@ -493,6 +507,12 @@ def main() -> None:
     parser.add_argument("--supple-end", action="store_true",
                         help="with --hard: the listener <subject>_hard_supple_placed, the placed hard ear scans with "
                         "the layer's stiffness schedule taken a stage further, to 0.03 mm²")
+    parser.add_argument("--layer-variant", choices=sorted(LAYER_VARIANTS), default=None,
+                        help="with --hard: the listener <subject>_hard_<NAME>_placed, the placed hard ear scans with the "
+                        "layer laid with LAYER_VARIANTS[NAME] (--noise-floor is noise, --supple-end supple)")
+    parser.add_argument("--draw", type=int, default=0,
+                        help="with --hard --placed: the listener <subject>_hard_placed_draw<N>, the same recipe's hard "
+                        "ear scans drawn with the evaluation's seed plus N (how far the figures move with the draw)")
     parser.add_argument("--until", default=None, help="run only up to this output of the listener (e.g. "
                         "remesh/validation.json: fits, stitch and remesh without the solve)")
     args = parser.parse_args()
@@ -503,13 +523,17 @@ def main() -> None:
             parser.error("--placed and --oracle go with --hard")
         if args.oracle and args.no_layer:
             parser.error("--oracle is the placed listener with the layer")
-        variant = "noise" if args.noise_floor else "supple" if args.supple_end else None
-        if variant and (not args.hard or args.no_layer or args.oracle or (args.noise_floor and args.supple_end)):
-            parser.error("--noise-floor or --supple-end (one) goes with --hard, with the layer, without --oracle "
-                         "(it is placed)")
-        name = f"{args.subject}_{listener_kind(args.hard, not args.no_layer, args.placed, args.oracle, variant)}"
+        chosen = [name for name, flag in (("noise", args.noise_floor), ("supple", args.supple_end),
+                                          (args.layer_variant, args.layer_variant)) if flag]
+        variant = chosen[0] if chosen else None
+        if variant and (not args.hard or args.no_layer or args.oracle or len(chosen) > 1):
+            parser.error("--noise-floor, --supple-end or --layer-variant (one) goes with --hard, with the layer, "
+                         "without --oracle (it is placed)")
+        if args.draw and (not (args.hard and args.placed) or args.no_layer or args.oracle or variant or args.draw < 0):
+            parser.error("--draw N (N > 0) goes with --hard --placed, with the packaged layer")
+        name = f"{args.subject}_{listener_kind(args.hard, not args.no_layer, args.placed, args.oracle, variant, args.draw)}"
         run(args.subject, args.seed, args.cores, [f"results/listeners/{name}/{args.until}"] if args.until else None,
-            args.hard, not args.no_layer, args.placed, args.oracle, variant)
+            args.hard, not args.no_layer, args.placed, args.oracle, variant, args.draw)
     print(json.dumps(report(args.subject, args.seed)))
 
 

@@ -37,8 +37,10 @@ KEYS = ("truth_to_fit_median_mm", "truth_to_fit_p95_mm", "fit_to_truth_median_mm
 BOTH_WAYS = KEYS[:4]
 
 
-def measure(subjects: list[str], cache: Path, factors: list[float]) -> dict:
-    """Per subject-level: the reconstruction's and each layer's figures (mm), and each layer's schedule end."""
+def measure(subjects: list[str], cache: Path, factors: list[float], variants: dict | None = None) -> dict:
+    """Per subject-level: the reconstruction's and each layer's figures (mm), and each layer's schedule end: the
+    packaged layer, one per noise factor, and one per ``variants`` entry (name -> ppm/data/personal_detail.yaml
+    settings changed)."""
     import bpy  # noqa: F401,PLC0415  (before pymeshlab)
     import trimesh  # noqa: PLC0415
 
@@ -49,6 +51,7 @@ def measure(subjects: list[str], cache: Path, factors: list[float]) -> dict:
 
     settings = {"packaged": DetailSettings.packaged()}
     settings.update({f"noise x{factor:g}": DetailSettings.packaged(noise_stiffness_factor=factor) for factor in factors})
+    settings.update({name: DetailSettings.packaged(**changed) for name, changed in (variants or {}).items()})
     rows: dict[str, dict] = {}
     for subject in subjects:
         truth = prepare_target(SONICOM / subject / "pinna_left_crop.ply")

@@ -1,13 +1,15 @@
 """Where a hard listener's ears still miss (issue 54): each stitched pinna of the listeners whose hard ear scans were
 placed by the head's frame (P143_hard_placed with the personal-detail layer, P143_hard_ppm_placed without it, and
 P143_hard_oracle_placed, whose scans were completed by the truth where they were blind; P143_hard_noise_placed, whose
-layer ends at the scans' noise; P143_hard_supple_placed, whose layer goes a stage further), split into the faces the hard
-scan saw (a scan point within reporting.coverage.SEEN_MM of the face's centre, the coverage report's rule) and the
-faces it did not, each face's centre measured to the head as scanned (the solved reference
-head in the step store, the listener's frame, mm). Area-weighted median / p95 and the share of area beyond 0.5 mm.
+layer ends at the scans' noise; P143_hard_supple_placed, whose layer goes a stage further; P143_hard_points_placed,
+the supple end led by the scan's points), split into the faces the hard scan saw (a scan point within
+reporting.coverage.SEEN_MM of the face's centre, the coverage report's rule) and the faces it did not, each face's
+centre measured to the head as scanned (the solved reference head in the step store, the listener's frame, mm).
+Area-weighted median / p95 and the share of area beyond 0.5 mm.
 
 Needs the listeners' run folders (results/listeners/<name>/, made by benchmarks/new_listener.py --hard --placed
-[--no-layer], --hard --oracle, --hard --noise-floor and --hard --supple-end) and the step store's scanned head.
+[--no-layer], --hard --oracle, --hard --noise-floor, --hard --supple-end and --hard --layer-variant points) and the
+step store's scanned head.
 
 Run: .venv/bin/python studies/seen_unseen_error.py [--subject P143]
 Last line: JSON {listener: {side: {seen|unseen: {area_share, median_mm, p95_mm, share_over_0_5mm}}}}.
@@ -74,10 +76,11 @@ def main() -> None:
     result = {}
     hard_scans = ROOT / "results" / "listeners" / f"{args.subject}_hard_placed" / "prepared"
     for kind, step in (("hard_placed", "detail"), ("hard_ppm_placed", "align"), ("hard_oracle_placed", "detail"),
-                       ("hard_noise_placed", "detail"), ("hard_supple_placed", "detail")):
+                       ("hard_noise_placed", "detail"), ("hard_supple_placed", "detail"),
+                       ("hard_points_placed", "detail")):
         base = ROOT / "results" / "listeners" / f"{args.subject}_{kind}"
         if not base.is_dir() or not hard_scans.is_dir():
-            print(f"{base} is missing: run benchmarks/new_listener.py --hard --placed [--no-layer | --oracle | --noise-floor | --supple-end] first",
+            print(f"{base} is missing: run benchmarks/new_listener.py --hard --placed [--no-layer | --oracle | --noise-floor | --supple-end | --layer-variant points] first",
                   flush=True)
             continue
         result[kind] = {}

@@ -279,3 +279,21 @@ def test_the_layer_ends_no_more_supple_than_the_scan_s_noise(posed):
     clean = target_from_mesh(trimesh.Trimesh(vertices, faces, process=False), "clean PPM scan")
     assert personal_detail(vertices, faces, clean, DetailSettings.packaged(noise_stiffness_factor=1.0)
                            ).stiffness_mm2 == DetailSettings.packaged().stiffness_mm2
+
+
+def test_a_layer_led_by_the_scan_s_points_sags_less_between_them():
+    """A sphere (radius 12 mm) scanned with 1.8 mm edges: the chords between its points lie up to 0.03 mm inside it.
+    The PPM, a finer sphere 0.4 mm too large, pulled by the packaged layer sits inside the sphere by about the chords'
+    sag (its vertices go to the scan's triangulated surface); with the vertices' pull weighted 0.3
+    (forward_weight), the scan's points lead and the sag shrinks; with no such pull the points alone hold it."""
+    radius = 12.0
+    fine = trimesh.creation.icosphere(subdivisions=4, radius=radius)
+    scan = target_from_mesh(trimesh.creation.icosphere(subdivisions=3, radius=radius), "coarse sphere scan")
+    ppm = np.asarray(fine.vertices) * (radius + 0.4) / radius
+    sag = {}
+    for weight in (1.0, 0.3, 0.0):
+        layer = personal_detail(ppm, fine.faces, scan, DetailSettings.packaged(forward_weight=weight, hole_fill_mm=None))
+        sag[weight] = float(np.mean(np.linalg.norm(ppm + layer.displacement_mm, axis=1) - radius))
+    assert -0.035 < sag[1.0] < -0.015  # inside, by the chords
+    assert sag[1.0] < sag[0.3] < 0.0
+    assert abs(sag[0.0]) < abs(sag[1.0])

@@ -55,6 +55,7 @@ class DetailSettings:
     fold_smoothing_rounds: int = 0
     hole_fill_mm: float | None = None
     noise_stiffness_factor: float | None = None
+    forward_weight: float = 1.0
 
     @classmethod
     def packaged(cls, **overrides) -> "DetailSettings":
@@ -334,9 +335,9 @@ def personal_detail(vertices_mm: np.ndarray, faces: np.ndarray, target: Target,
     A displacement field U (n, 3) minimises, per stiffness s of the schedule (stiff to supple, each a few times with
     the correspondences found again on the displaced surface),
 
-        sum_trusted |x_i + u_i - c_i|^2 + w sum_trusted scan points |B_j (x + u) - p_j|^2 + s tr(U^T L U) + d |U|^2,
+        f sum_trusted |x_i + u_i - c_i|^2 + w sum_trusted scan points |B_j (x + u) - p_j|^2 + s tr(U^T L U) + d |U|^2,
 
-    c_i the closest scan point of vertex i, B_j the barycentric row of scan point p_j's closest point on the
+    f the ``forward_weight``, c_i the closest point of vertex i on the scan's surface, B_j the barycentric row of scan point p_j's closest point on the
     displaced PPM (so that the scan also pulls the PPM into hollows no vertex maps to), L the Laplacian of
     :func:`laplacian`; the rim is held. Then U is bounded and halved around any folded face (turned against the PPM's,
     or creased against a neighbour beyond ``crease_limit_deg`` and the PPM's own crease there) until none is."""
@@ -378,8 +379,9 @@ def personal_detail(vertices_mm: np.ndarray, faces: np.ndarray, target: Target,
             closest, distance, triangle = pair(scan, moved.vertices, moved.vertex_normals)
             trusted = _trusted_pairs(moved.vertices, np.asarray(moved.vertex_normals), closest, distance,
                                      scan.face_normals[triangle], scan_edge, closest, moved.vertices, settings)
-            system = sp.diags(trusted.astype(np.float64)) + stiffness * smoothing + settings.decay * sp.identity(n)
-            wanted = trusted[:, None] * (closest - vertices_mm)
+            forward = settings.forward_weight * trusted.astype(np.float64)
+            system = sp.diags(forward) + stiffness * smoothing + settings.decay * sp.identity(n)
+            wanted = forward[:, None] * (closest - vertices_mm)
             if settings.reverse_weight > 0:
                 on_ppm, back, ppm_triangle = pair(moved, scan_points, scan_normals)
                 pulling = np.flatnonzero(_trusted_pairs(scan_points, scan_normals, on_ppm, back,

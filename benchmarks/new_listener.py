@@ -33,7 +33,8 @@ and its head as scanned solved the same way (listener.scanned_head), then judged
   PPM's vertices towards the scan's triangulated surface weighted 0.3 (forward_weight), so that the scan's points
   lead rather than the chords between them;
 - with --hard --placed --draw N, the listener <subject>_hard_placed_draw<N>: the placed, layered listener on another
-  draw of the same hard recipe (seed + N): how far a hard listener's figures move with the scans' draw;
+  draw of the same hard recipe (seed + N): how far a hard listener's figures move with the scans' draw; with
+  --layer-variant NAME --draw N, <subject>_hard_<NAME>_placed_draw<N>, the variant on that draw;
 - every solved personal head's ears against the head as scanned (<kind>_ears_to_scanned, mm).
 
 The steps are kept in benchmarks/results/new_listener/steps_dataset_grid as they finish, so that a run stopped on the
@@ -75,7 +76,8 @@ STORE = KEPT / "steps_dataset_grid"
 #: The listeners whose ears are fitted to hard scans: registered or placed, with the layer or without; and the placed,
 #: layered listener whose hard scans are completed by the truth where they were blind (hard_oracle_placed).
 HARD_KINDS = ("hard", "hard_ppm", "hard_placed", "hard_ppm_placed", "hard_oracle_placed", "hard_noise_placed",
-              "hard_supple_placed", "hard_points_placed", "hard_placed_draw1")
+              "hard_supple_placed", "hard_points_placed", "hard_placed_draw1",
+              "hard_points_placed_draw1")
 #: The layer's settings (ppm/data/personal_detail.yaml names) of the placed hard listeners hard_<variant>_placed whose
 #: layer differs from the packaged one.
 LAYER_VARIANTS = {"noise": {"noise_stiffness_factor": 1.0},
@@ -173,12 +175,12 @@ def listener_kind(hard: bool = False, layer: bool = True, placed: bool = False, 
     hard_ppm_placed (the placed scans, no layer), hard_oracle_placed (the placed, layered listener whose hard scans
     are completed by the clean crop where they were blind), hard_<variant>_placed (the placed, layered listener whose
     layer is laid with :data:`LAYER_VARIANTS` [variant]: noise, ended at the scan's noise; supple, a stage further;
-    points, the supple end led by the scan's points more than by its surface), hard_placed_draw<N> (the placed,
-    layered listener on another draw of the hard scans)."""
+    points, the supple end led by the scan's points more than by its surface), hard[_<variant>]_placed_draw<N> (the
+    placed, layered listener on another draw of the hard scans)."""
     if not hard:
         return "new"
     if draw:
-        return f"hard_placed_draw{draw}"
+        return f"hard_{variant + '_' if variant else ''}placed_draw{draw}"
     if oracle:
         return "hard_oracle_placed"
     if variant:
@@ -511,8 +513,9 @@ def main() -> None:
                         help="with --hard: the listener <subject>_hard_<NAME>_placed, the placed hard ear scans with the "
                         "layer laid with LAYER_VARIANTS[NAME] (--noise-floor is noise, --supple-end supple)")
     parser.add_argument("--draw", type=int, default=0,
-                        help="with --hard --placed: the listener <subject>_hard_placed_draw<N>, the same recipe's hard "
-                        "ear scans drawn with the evaluation's seed plus N (how far the figures move with the draw)")
+                        help="with --hard --placed (or --layer-variant NAME): the listener <subject>_hard[_NAME]_placed_draw<N>, "
+                        "the same recipe's hard ear scans drawn with the evaluation's seed plus N (how far the figures "
+                        "move with the draw)")
     parser.add_argument("--until", default=None, help="run only up to this output of the listener (e.g. "
                         "remesh/validation.json: fits, stitch and remesh without the solve)")
     args = parser.parse_args()
@@ -529,8 +532,8 @@ def main() -> None:
         if variant and (not args.hard or args.no_layer or args.oracle or len(chosen) > 1):
             parser.error("--noise-floor, --supple-end or --layer-variant (one) goes with --hard, with the layer, "
                          "without --oracle (it is placed)")
-        if args.draw and (not (args.hard and args.placed) or args.no_layer or args.oracle or variant or args.draw < 0):
-            parser.error("--draw N (N > 0) goes with --hard --placed, with the packaged layer")
+        if args.draw and (not (args.hard and (args.placed or variant)) or args.no_layer or args.oracle or args.draw < 0):
+            parser.error("--draw N (N > 0) goes with --hard --placed (or a layer variant), with the layer")
         name = f"{args.subject}_{listener_kind(args.hard, not args.no_layer, args.placed, args.oracle, variant, args.draw)}"
         run(args.subject, args.seed, args.cores, [f"results/listeners/{name}/{args.until}"] if args.until else None,
             args.hard, not args.no_layer, args.placed, args.oracle, variant, args.draw)

@@ -219,7 +219,8 @@ def write_config(subject: str, seed: int, hard: bool = False, layer: bool = True
     if hard:
         ears = hard_ear_scans(subject, seed, pose, oracle, draw)
         listener.update({f"{side}_ear": str(path.relative_to(ROOT)) for side, path in ears.items()})
-        if placed or oracle or variant or draw:  # written with the head's pose and unit: in the head scan's own coordinates
+        if placed or oracle or variant or draw:
+            # written with the head's pose and unit: in the head scan's own coordinates
             listener["ear_scan_frame"] = "head"
     config = WORK / ("config.yaml" if kind == "new" else f"config_{kind}.yaml")
     config.write_text(json.dumps({
@@ -510,12 +511,12 @@ def main() -> None:
                         help="with --hard: the listener <subject>_hard_supple_placed, the placed hard ear scans with "
                         "the layer's stiffness schedule taken a stage further, to 0.03 mm²")
     parser.add_argument("--layer-variant", choices=sorted(LAYER_VARIANTS), default=None,
-                        help="with --hard: the listener <subject>_hard_<NAME>_placed, the placed hard ear scans with the "
-                        "layer laid with LAYER_VARIANTS[NAME] (--noise-floor is noise, --supple-end supple)")
+                        help="with --hard: the listener <subject>_hard_<NAME>_placed, the placed hard ear scans with "
+                        "the layer laid with LAYER_VARIANTS[NAME] (--noise-floor is noise, --supple-end supple)")
     parser.add_argument("--draw", type=int, default=0,
-                        help="with --hard --placed (or --layer-variant NAME): the listener <subject>_hard[_NAME]_placed_draw<N>, "
-                        "the same recipe's hard ear scans drawn with the evaluation's seed plus N (how far the figures "
-                        "move with the draw)")
+                        help="with --hard --placed (or --layer-variant NAME): the listener "
+                        "<subject>_hard[_NAME]_placed_draw<N>, the same recipe's hard ear scans drawn with the "
+                        "evaluation's seed plus N (how far the figures move with the draw)")
     parser.add_argument("--until", default=None, help="run only up to this output of the listener (e.g. "
                         "remesh/validation.json: fits, stitch and remesh without the solve)")
     args = parser.parse_args()
@@ -526,15 +527,17 @@ def main() -> None:
             parser.error("--placed and --oracle go with --hard")
         if args.oracle and args.no_layer:
             parser.error("--oracle is the placed listener with the layer")
-        chosen = [name for name, flag in (("noise", args.noise_floor), ("supple", args.supple_end),
-                                          (args.layer_variant, args.layer_variant)) if flag]
+        chosen = [name for name in ("noise" if args.noise_floor else None, "supple" if args.supple_end else None,
+                                    args.layer_variant) if name]
         variant = chosen[0] if chosen else None
         if variant and (not args.hard or args.no_layer or args.oracle or len(chosen) > 1):
             parser.error("--noise-floor, --supple-end or --layer-variant (one) goes with --hard, with the layer, "
                          "without --oracle (it is placed)")
-        if args.draw and (not (args.hard and (args.placed or variant)) or args.no_layer or args.oracle or args.draw < 0):
+        if args.draw and (args.draw < 0 or not (args.hard and (args.placed or variant)) or args.no_layer
+                          or args.oracle):
             parser.error("--draw N (N > 0) goes with --hard --placed (or a layer variant), with the layer")
-        name = f"{args.subject}_{listener_kind(args.hard, not args.no_layer, args.placed, args.oracle, variant, args.draw)}"
+        kind = listener_kind(args.hard, not args.no_layer, args.placed, args.oracle, variant, args.draw)
+        name = f"{args.subject}_{kind}"
         run(args.subject, args.seed, args.cores, [f"results/listeners/{name}/{args.until}"] if args.until else None,
             args.hard, not args.no_layer, args.placed, args.oracle, variant, args.draw)
     print(json.dumps(report(args.subject, args.seed)))

@@ -37,7 +37,8 @@ def main() -> None:
     from noise_stiffness import measure, summarise  # noqa: PLC0415
     from surface_measures import fit_scans  # noqa: PLC0415
 
-    cache = ROOT / "results" / "studies" / ("surface_measures" if args.seed == 19 else f"surface_measures_seed{args.seed}")
+    folder = "surface_measures" if args.seed == 19 else f"surface_measures_seed{args.seed}"
+    cache = ROOT / "results" / "studies" / folder
     fit_scans(args.subjects, cache, args.seed)
     variants = {name: LAYER_VARIANTS[name] for name in args.variants}
     rows = measure(args.subjects, cache, [], variants)

@@ -68,8 +68,9 @@ def rows_on(positions_deg: np.ndarray, wanted_deg: np.ndarray) -> np.ndarray:
 
     distance, nearest = cKDTree(unit_vectors(positions_deg)).query(unit_vectors(wanted_deg))
     if np.any(distance > 2.0 * np.sin(np.radians(TOLERANCE_DEG) / 2.0)):
-        raise SystemExit(f"a listener's grid lacks {int(np.sum(distance > 0.01))} of the dataset's directions; solve it "
-                         "with listener.dataset_grid")
+        missing = int(np.sum(distance > 2.0 * np.sin(np.radians(TOLERANCE_DEG) / 2.0)))
+        raise SystemExit(f"a listener's grid lacks {missing} of the dataset's directions; solve it with "
+                         "listener.dataset_grid")
     return nearest
 
 
@@ -77,12 +78,6 @@ def lateral_polar_deg(positions_deg: np.ndarray) -> tuple[np.ndarray, np.ndarray
     """Interaural-polar coordinates (deg): lateral (+90 left) and polar (0 front, 90 above, 180 behind)."""
     x, y, z = unit_vectors(positions_deg).T
     return np.degrees(np.arcsin(np.clip(y, -1.0, 1.0))), np.degrees(np.arctan2(z, x))
-
-
-def dtf_db(spectra: np.ndarray) -> np.ndarray:
-    """DTF levels (dB): per ear and frequency, the level minus its mean over the directions (axis 0)."""
-    level = 20.0 * np.log10(np.abs(spectra) + 1e-20)
-    return level - level.mean(axis=0, keepdims=True)
 
 
 def notch_hz(dtf: np.ndarray, frequencies_hz: np.ndarray) -> np.ndarray:
@@ -118,6 +113,8 @@ def main() -> None:
     base = ROOT / "results" / "listeners"
     import sofar
 
+    from amt_bridge.dtf import directional_levels_db
+
     dataset = np.asarray(sofar.read_sofa(str(SONICOM / subject / "hrir_mesh2hrtf_48k.sofa"),
                                          verify=False).SourcePosition, dtype=np.float64)
     lateral, polar = lateral_polar_deg(dataset)
@@ -127,9 +124,8 @@ def main() -> None:
     scanned = scanned[rows_on(positions, dataset)]
     kept = json.loads((KEPT / f"{subject}.json").read_text()) if (KEPT / f"{subject}.json").is_file() else {}
     bands = list(zip(BAND_EDGES_HZ[:-1], BAND_EDGES_HZ[1:]))
-    scanned_dtf = dtf_db(scanned[sagittal])
-    scanned_notch = np.concatenate([notch_hz(dtf_db(scanned[sagittal])[frontal[sagittal], ear],
-                                             frequencies) for ear in (0, 1)])
+    scanned_dtf = directional_levels_db(scanned[sagittal])
+    scanned_notch = np.concatenate([notch_hz(scanned_dtf[frontal[sagittal], ear], frequencies) for ear in (0, 1)])
     figures: dict = {}
     print(f"{subject}: personal sets against the head as scanned, both ears, {int(sagittal.sum())} dataset directions "
           f"within {SAGITTAL_REACH_DEG:g} deg of the median plane ({int(frontal.sum())} of them in front, "
@@ -143,7 +139,7 @@ def main() -> None:
         kind_frequencies, spectra, positions = read_set(path)
         if not np.allclose(kind_frequencies, frequencies):
             raise SystemExit(f"{path}: its frequencies are not the scanned head's")
-        dtf = dtf_db(spectra[rows_on(positions, dataset)][sagittal])
+        dtf = directional_levels_db(spectra[rows_on(positions, dataset)][sagittal])
         gap = np.abs(dtf - scanned_dtf)
         contrast = dtf.std(axis=0) / scanned_dtf.std(axis=0)  # (2 ears, K)
         row = {"gap_db": [], "contrast": []}
@@ -157,7 +153,8 @@ def main() -> None:
         row["delta_qe_pp"] = kept.get("paper_delta_qe_pp" if kind == "new" else f"{kind}_paper_delta_qe_pp")
         row["delta_pe_deg"] = kept.get("paper_delta_pe_deg" if kind == "new" else f"{kind}_paper_delta_pe_deg")
         figures[kind] = row
-        qe = "not judged" if row["delta_qe_pp"] is None else f"{row['delta_qe_pp']:+.2f} pp / {row['delta_pe_deg']:+.2f} deg"
+        qe = ("not judged" if row["delta_qe_pp"] is None
+              else f"{row['delta_qe_pp']:+.2f} pp / {row['delta_pe_deg']:+.2f} deg")
         print(f"{kind:20s} {qe}: |ΔDTF| " + " ".join(f"{g:.2f}" for g in row["gap_db"]) + " dB; contrast "
               + " ".join(f"{c:.2f}" for c in row["contrast"]) + f"; first notch {row['notch_median_hz']:.0f} Hz "
               f"(scanned {np.median(scanned_notch):.0f}), shifted {row['notch_shift_percent']:.1f} %")

@@ -337,10 +337,11 @@ def personal_detail(vertices_mm: np.ndarray, faces: np.ndarray, target: Target,
 
         f sum_trusted |x_i + u_i - c_i|^2 + w sum_trusted scan points |B_j (x + u) - p_j|^2 + s tr(U^T L U) + d |U|^2,
 
-    f the ``forward_weight``, c_i the closest point of vertex i on the scan's surface, B_j the barycentric row of scan point p_j's closest point on the
-    displaced PPM (so that the scan also pulls the PPM into hollows no vertex maps to), L the Laplacian of
-    :func:`laplacian`; the rim is held. Then U is bounded and halved around any folded face (turned against the PPM's,
-    or creased against a neighbour beyond ``crease_limit_deg`` and the PPM's own crease there) until none is."""
+    f the ``forward_weight``, c_i the closest point of vertex i on the scan's surface, B_j the barycentric row of scan
+    point p_j's closest point on the displaced PPM (so that the scan also pulls the PPM into hollows no vertex maps
+    to), L the Laplacian of :func:`laplacian`; the rim is held. Then U is bounded and halved around any folded face
+    (turned against the PPM's, or creased against a neighbour beyond ``crease_limit_deg`` and the PPM's own crease
+    there) until none is."""
     from scipy.sparse.linalg import factorized  # noqa: PLC0415
 
     settings = settings or DetailSettings.packaged()

@@ -74,10 +74,11 @@ WORK = ROOT / "results" / "new_listener"
 #: KEPT / "steps" for the record.
 STORE = KEPT / "steps_dataset_grid"
 #: The listeners whose ears are fitted to hard scans: registered or placed, with the layer or without; and the placed,
-#: layered listener whose hard scans are completed by the truth where they were blind (hard_oracle_placed).
+#: layered listener whose hard scans are completed by the truth where they were blind (hard_oracle_placed); the
+#: placed listeners with another layer (hard_<variant>_placed) and on further draws of the hard scans (..._draw<N>).
 HARD_KINDS = ("hard", "hard_ppm", "hard_placed", "hard_ppm_placed", "hard_oracle_placed", "hard_noise_placed",
               "hard_supple_placed", "hard_points_placed", "hard_placed_draw1",
-              "hard_points_placed_draw1")
+              "hard_points_placed_draw1", "hard_placed_draw2", "hard_points_placed_draw2")
 #: The layer's settings (ppm/data/personal_detail.yaml names) of the placed hard listeners hard_<variant>_placed whose
 #: layer differs from the packaged one.
 LAYER_VARIANTS = {"noise": {"noise_stiffness_factor": 1.0},
@@ -86,7 +87,8 @@ LAYER_VARIANTS = {"noise": {"noise_stiffness_factor": 1.0},
 DATASET_SOFA = "hrir_mesh2hrtf_48k.sofa"
 #: Keys of the kept JSON that the report works out itself after the carry (from fresh or carried figures): never
 #: carried.
-DERIVED_AFTER_CARRY = ("carried_from_kept", "unseen_share_of_hard_placed_gap")
+DERIVED_AFTER_CARRY = ("carried_from_kept", "unseen_share_of_hard_placed_gap", "hard_placed_draws_mean",
+                       "hard_points_placed_draws_mean")
 
 
 def evaluation_hard_scan() -> dict:
@@ -468,6 +470,22 @@ def report(subject: str, seed: int) -> dict:
         summary["unseen_share_of_hard_placed_gap"] = {
             quantity: round(1.0 - summary[f"hard_oracle_placed_paper_delta_{quantity}"]
                             / summary[f"hard_placed_paper_delta_{quantity}"], 3) for quantity in ("qe_pp", "pe_deg")}
+    for layer in ("hard_placed", "hard_points_placed"):
+        # a layer setting over the hard scans' draws: the first draw and every further one solved
+        # (<layer>_draw<N>); one draw moves the figures by as much as a setting does
+        draws = [kind for kind in HARD_KINDS if kind == layer or kind.startswith(f"{layer}_draw")]
+        judged = [kind for kind in draws if summary.get(f"{kind}_paper_delta_qe_pp") is not None]
+        if len(judged) > 1:
+            summary[f"{layer}_draws_mean"] = {
+                "draws": len(judged),
+                **{f"paper_delta_{quantity}": round(float(np.mean(
+                    [summary[f"{kind}_paper_delta_{quantity}"] for kind in judged])), 3)
+                   for quantity in ("qe_pp", "pe_deg")}}
+            print(f"{layer} over {len(judged)} draws of the hard scans: "
+                  + ", ".join(f"{summary[kind + '_paper_delta_qe_pp']:+.2f} pp / "
+                              f"{summary[kind + '_paper_delta_pe_deg']:+.2f} deg" for kind in judged)
+                  + f"; mean {summary[layer + '_draws_mean']['paper_delta_qe_pp']:+.2f} pp / "
+                  f"{summary[layer + '_draws_mean']['paper_delta_pe_deg']:+.2f} deg", flush=True)
     print(f"{subject} as a new listener: {json.dumps({k: v for k, v in summary.items() if not isinstance(v, dict)})}",
           flush=True)
     if summary.get("paper_delta_qe_pp") is not None:

@@ -34,7 +34,11 @@ and its head as scanned solved the same way (listener.scanned_head), then judged
   lead rather than the chords between them;
 - with --hard --placed --draw N, the listener <subject>_hard_placed_draw<N>: the placed, layered listener on another
   draw of the same hard recipe (seed + N): how far a hard listener's figures move with the scans' draw; with
-  --layer-variant NAME --draw N, <subject>_hard_<NAME>_placed_draw<N>, the variant on that draw;
+  --layer-variant NAME --draw N, <subject>_hard_<NAME>_placed_draw<N>, the variant on that draw; the figures of a
+  layer over the draws solved (hard_placed_draws_mean, hard_points_placed_draws_mean);
+- with --layer-variant NAME alone, the listener <subject>_new_<NAME>: the clean head scan with the layer variant,
+  judged against <subject>_new's head as scanned (whether a layer that brings the hard listener nearer keeps the
+  clean one where it is);
 - every solved personal head's ears against the head as scanned (<kind>_ears_to_scanned, mm).
 
 The steps are kept in benchmarks/results/new_listener/steps_dataset_grid as they finish, so that a run stopped on the
@@ -42,7 +46,7 @@ way (or a fresh clone) continues from them. The posed head and the run's outputs
 results/listeners/ (not committed: the head is the dataset's).
 
 Run: .venv/bin/python benchmarks/new_listener.py [--subject P143] [--seed 7] [--cores 2]
-     [--hard [--no-layer] [--placed] [--oracle] [--noise-floor | --supple-end | --layer-variant NAME] [--draw N]]
+     [--hard [--no-layer] [--placed] [--oracle] [--noise-floor | --supple-end] [--draw N]] [--layer-variant NAME]
      [--until remesh/validation.json] [--report-only]
 Last line: JSON with paper_delta_qe_pp, paper_delta_pe_deg, paper_left_delta_qe_pp, paper_right_delta_qe_pp,
 hard_paper_delta_qe_pp, hard_paper_delta_pe_deg, hard_ppm_paper_delta_qe_pp, hard_ppm_paper_delta_pe_deg,
@@ -79,6 +83,9 @@ STORE = KEPT / "steps_dataset_grid"
 HARD_KINDS = ("hard", "hard_ppm", "hard_placed", "hard_ppm_placed", "hard_oracle_placed", "hard_noise_placed",
               "hard_supple_placed", "hard_points_placed", "hard_placed_draw1",
               "hard_points_placed_draw1", "hard_placed_draw2", "hard_points_placed_draw2")
+#: The clean head scan's listeners whose layer is laid with a variant of LAYER_VARIANTS (new_<variant>): whether a
+#: variant that brings the hard listener nearer keeps the clean one where it is.
+CLEAN_VARIANT_KINDS = ("new_points",)
 #: The layer's settings (ppm/data/personal_detail.yaml names) of the placed hard listeners hard_<variant>_placed whose
 #: layer differs from the packaged one.
 LAYER_VARIANTS = {"noise": {"noise_stiffness_factor": 1.0},
@@ -178,9 +185,10 @@ def listener_kind(hard: bool = False, layer: bool = True, placed: bool = False, 
     are completed by the clean crop where they were blind), hard_<variant>_placed (the placed, layered listener whose
     layer is laid with :data:`LAYER_VARIANTS` [variant]: noise, ended at the scan's noise; supple, a stage further;
     points, the supple end led by the scan's points more than by its surface), hard[_<variant>]_placed_draw<N> (the
-    placed, layered listener on another draw of the hard scans)."""
+    placed, layered listener on another draw of the hard scans), new_<variant> (the clean head scan, its layer laid
+    with :data:`LAYER_VARIANTS` [variant])."""
     if not hard:
-        return "new"
+        return f"new_{variant}" if variant else "new"
     if draw:
         return f"hard_{variant + '_' if variant else ''}placed_draw{draw}"
     if oracle:
@@ -200,7 +208,7 @@ def run(subject: str, seed: int, cores: int, targets: list[str] | None = None, h
     config = write_config(subject, seed, hard, layer, placed, oracle, variant, draw)
     snakemake(["--cores", str(cores), "--configfile", str(config.relative_to(ROOT)), "--rerun-triggers", "mtime",
                "--rerun-incomplete",
-               *(["--nolock"] if hard else []), *(["--", *targets] if targets else [])])
+               *(["--nolock"] if hard or variant else []), *(["--", *targets] if targets else [])])
 
 
 def write_config(subject: str, seed: int, hard: bool = False, layer: bool = True, placed: bool = False,
@@ -211,7 +219,8 @@ def write_config(subject: str, seed: int, hard: bool = False, layer: bool = True
     the hard ear scans placed by the head's frame, ear_scan_frame: head; config_hard_oracle_placed.yaml for the placed
     scans completed by the truth where they were blind; config_hard_<variant>_placed.yaml for the placed scans, the
     layer laid with LAYER_VARIANTS[variant]; config_hard_placed_draw<N>.yaml for another draw of the hard scans,
-    placed), the template without the subject built first."""
+    placed; config_new_<variant>.yaml for the clean head scan with a layer variant, judged against <subject>_new's head
+    as scanned), the template without the subject built first."""
     head, pose = posed_head(subject, seed)
     template = f"results/templates/without_{subject}/template_left.ply"
     if not (ROOT / template).is_file():
@@ -228,7 +237,7 @@ def write_config(subject: str, seed: int, hard: bool = False, layer: bool = True
     config.write_text(json.dumps({
         "listeners": [listener],
         "listener": {"template": str(Path(template).parent), "comparison_sets": [], "personal_detail": layer,
-                     "scanned_head": not hard, "dataset_grid": str(SONICOM / subject / DATASET_SOFA),
+                     "scanned_head": kind == "new", "dataset_grid": str(SONICOM / subject / DATASET_SOFA),
                      **({"personal_detail_settings": LAYER_VARIANTS[variant]} if variant else {})},
         "hrtf": {"enabled": True, "solver": "numcalc", "frequencies_hz": "evaluation",
                  "step_store": str(STORE.relative_to(ROOT))},
@@ -420,13 +429,13 @@ def report(subject: str, seed: int) -> dict:
     summary["other_person_ears_gap_by_plane"] = other_person_gap(subject)
     # the hard listener, with the layer (hard_) and without it (hard_ppm_), judged against the same head as scanned
     scanned_head = STORE / "listeners" / f"{subject}_new" / "scanned" / "head.ply"
-    for kind in ("new", *HARD_KINDS):
+    for kind in ("new", *HARD_KINDS, *CLEAN_VARIANT_KINDS):
         # each personal head's ears against the head as scanned (the stored, solved heads)
         personal_head = STORE / "listeners" / f"{subject}_{kind}" / "personal" / "head.ply"
         if personal_head.is_file() and scanned_head.is_file():
             summary[f"{'' if kind == 'new' else kind + '_'}ears_to_scanned"] = ears_to_scanned(personal_head,
                                                                                               scanned_head)
-    for kind in HARD_KINDS:
+    for kind in (*HARD_KINDS, *CLEAN_VARIANT_KINDS):
         base_kind = ROOT / "results" / "listeners" / f"{subject}_{kind}"
         kind_work = store_work(STORE / "listeners" / f"{subject}_{kind}" / "personal")
         summary.update(ear_figures(base_kind, f"{kind}_"))
@@ -529,8 +538,9 @@ def main() -> None:
                         help="with --hard: the listener <subject>_hard_supple_placed, the placed hard ear scans with "
                         "the layer's stiffness schedule taken a stage further, to 0.03 mm²")
     parser.add_argument("--layer-variant", choices=sorted(LAYER_VARIANTS), default=None,
-                        help="with --hard: the listener <subject>_hard_<NAME>_placed, the placed hard ear scans with "
-                        "the layer laid with LAYER_VARIANTS[NAME] (--noise-floor is noise, --supple-end supple)")
+                        help="the listener <subject>_new_<NAME> (the clean head scan), with --hard "
+                        "<subject>_hard_<NAME>_placed (the placed hard ear scans), its layer laid with "
+                        "LAYER_VARIANTS[NAME] (--noise-floor is noise, --supple-end supple)")
     parser.add_argument("--draw", type=int, default=0,
                         help="with --hard --placed (or --layer-variant NAME): the listener "
                         "<subject>_hard[_NAME]_placed_draw<N>, the same recipe's hard ear scans drawn with the "
@@ -548,9 +558,9 @@ def main() -> None:
         chosen = [name for name in ("noise" if args.noise_floor else None, "supple" if args.supple_end else None,
                                     args.layer_variant) if name]
         variant = chosen[0] if chosen else None
-        if variant and (not args.hard or args.no_layer or args.oracle or len(chosen) > 1):
-            parser.error("--noise-floor, --supple-end or --layer-variant (one) goes with --hard, with the layer, "
-                         "without --oracle (it is placed)")
+        if variant and (args.no_layer or args.oracle or len(chosen) > 1):
+            parser.error("--noise-floor, --supple-end or --layer-variant (one) goes with the layer, without --oracle "
+                         "(with --hard it is placed)")
         if args.draw and (args.draw < 0 or not (args.hard and (args.placed or variant)) or args.no_layer
                           or args.oracle):
             parser.error("--draw N (N > 0) goes with --hard --placed (or a layer variant), with the layer")

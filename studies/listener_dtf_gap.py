@@ -3,7 +3,7 @@
     .venv/bin/python studies/listener_dtf_gap.py [--subject P143]
 
 Every solved listener of ``benchmarks/new_listener.py`` (``results/listeners/<subject>_<kind>/hrtf/personal/
-HRTF.sofa``: the clean head scan ``new`` and the placed hard listeners with their layer variants) against the head
+HRTF.sofa``: the clean head scan ``new`` and the placed hard listeners with their layer variants and draws) against the head
 as scanned (``results/listeners/<subject>_new/hrtf/scanned/HRTF.sofa``, the paper protocol's reference), both ears,
 on the dataset's directions (``../shared/data/sonicom/<subject>/hrir_mesh2hrtf_48k.sofa``, each within 0.5 deg) and
 within 30 deg of the median plane (the model's sagittal planes lie at -20, 0 and +20 deg). DTF: per ear and
@@ -37,7 +37,7 @@ sys.path.insert(0, str(ROOT))
 SONICOM = ROOT.parent / "shared" / "data" / "sonicom"
 KEPT = ROOT / "benchmarks" / "results" / "new_listener"
 KINDS = ("new", "hard_placed", "hard_ppm_placed", "hard_oracle_placed", "hard_noise_placed", "hard_supple_placed",
-         "hard_points_placed")
+         "hard_points_placed", "hard_placed_draw1", "hard_points_placed_draw1")
 BAND_EDGES_HZ = (700.0, 4400.0, 6000.0, 8500.0, 10300.0, 13000.0, 18000.0)
 SAGITTAL_REACH_DEG = 30.0
 NOTCH_RANGE_HZ = (5000.0, 13000.0)

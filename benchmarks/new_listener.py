@@ -83,14 +83,14 @@ STORE = KEPT / "steps_dataset_grid"
 HARD_KINDS = ("hard", "hard_ppm", "hard_placed", "hard_ppm_placed", "hard_oracle_placed", "hard_noise_placed",
               "hard_supple_placed", "hard_points_placed", "hard_placed_draw1",
               "hard_points_placed_draw1", "hard_placed_draw2", "hard_points_placed_draw2")
-#: The clean head scan's listeners whose layer is laid with a variant of LAYER_VARIANTS (new_<variant>): whether a
-#: variant that brings the hard listener nearer keeps the clean one where it is.
-CLEAN_VARIANT_KINDS = ("new_points",)
 #: The layer's settings (ppm/data/personal_detail.yaml names) of the placed hard listeners hard_<variant>_placed whose
 #: layer differs from the packaged one.
 LAYER_VARIANTS = {"noise": {"noise_stiffness_factor": 1.0},
                   "supple": {"stiffness_mm2": [10.0, 2.0, 0.5, 0.1, 0.03]},
                   "points": {"stiffness_mm2": [10.0, 2.0, 0.5, 0.1, 0.03], "forward_weight": 0.3}}
+#: The clean head scan's listeners whose layer is laid with a variant of LAYER_VARIANTS (new_<variant>): whether a
+#: variant that brings the hard listener nearer keeps the clean one where it is.
+CLEAN_VARIANT_KINDS = tuple(f"new_{variant}" for variant in LAYER_VARIANTS)
 DATASET_SOFA = "hrir_mesh2hrtf_48k.sofa"
 #: Keys of the kept JSON that the report works out itself after the carry (from fresh or carried figures): never
 #: carried.

@@ -3,10 +3,10 @@
     .venv/bin/python studies/listener_dtf_gap.py [--subject P143]
 
 Every solved listener of ``benchmarks/new_listener.py`` (``results/listeners/<subject>_<kind>/hrtf/personal/
-HRTF.sofa``: the clean head scan ``new`` and the placed hard listeners with their layer variants and draws) against the head
-as scanned (``results/listeners/<subject>_new/hrtf/scanned/HRTF.sofa``, the paper protocol's reference), both ears,
-on the dataset's directions (``../shared/data/sonicom/<subject>/hrir_mesh2hrtf_48k.sofa``, each within 0.5 deg) and
-within 30 deg of the median plane (the model's sagittal planes lie at -20, 0 and +20 deg). DTF: per ear and
+HRTF.sofa``: the clean head scan ``new`` and the placed hard listeners with their layer variants and draws) against
+the head as scanned (``results/listeners/<subject>_new/hrtf/scanned/HRTF.sofa``, the paper protocol's reference),
+both ears, on the dataset's directions (``../shared/data/sonicom/<subject>/hrir_mesh2hrtf_48k.sofa``, each within
+0.5 deg) and within 30 deg of the median plane (the model's sagittal planes lie at -20, 0 and +20 deg). DTF: per ear and
 frequency, the level (dB) minus its mean over those directions. Per band of ``BAND_EDGES_HZ``:
 
 - ``gap_db``: the median over directions and ears of |ΔDTF| (dB), personal minus scanned;

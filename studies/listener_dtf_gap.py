@@ -3,11 +3,12 @@
     .venv/bin/python studies/listener_dtf_gap.py [--subject P143]
 
 Every solved listener of ``benchmarks/new_listener.py`` (``results/listeners/<subject>_<kind>/hrtf/personal/
-HRTF.sofa``: the clean head scan ``new`` and the placed hard listeners with their layer variants and draws) against
-the head as scanned (``results/listeners/<subject>_new/hrtf/scanned/HRTF.sofa``, the paper protocol's reference),
-both ears, on the dataset's directions (``../shared/data/sonicom/<subject>/hrir_mesh2hrtf_48k.sofa``, each within
-0.5 deg) and within 30 deg of the median plane (the model's sagittal planes lie at -20, 0 and +20 deg). DTF: per ear and
-frequency, the level (dB) minus its mean over those directions. Per band of ``BAND_EDGES_HZ``:
+HRTF.sofa``: the clean head scan ``new``, its layer variants, and the placed hard listeners with their layer variants
+and draws; :data:`KINDS`) against the head as scanned (``results/listeners/<subject>_new/hrtf/scanned/HRTF.sofa``,
+the paper protocol's reference), both ears, on the dataset's directions
+(``../shared/data/sonicom/<subject>/hrir_mesh2hrtf_48k.sofa``, each within 0.5 deg) and within 30 deg of the median
+plane (the model's sagittal planes lie at -20, 0 and +20 deg). DTF: per ear and frequency, the level (dB) minus its
+mean over those directions. Per band of ``BAND_EDGES_HZ``:
 
 - ``gap_db``: the median over directions and ears of |ΔDTF| (dB), personal minus scanned;
 - ``contrast``: the DTF's spread over directions (standard deviation, dB), personal over scanned (1 = as deep and
@@ -34,10 +35,14 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "benchmarks"))
 SONICOM = ROOT.parent / "shared" / "data" / "sonicom"
 KEPT = ROOT / "benchmarks" / "results" / "new_listener"
-KINDS = ("new", "hard_placed", "hard_ppm_placed", "hard_oracle_placed", "hard_noise_placed", "hard_supple_placed",
-         "hard_points_placed", "hard_placed_draw1", "hard_points_placed_draw1")
+from new_listener import CLEAN_VARIANT_KINDS, HARD_KINDS  # noqa: E402
+
+#: The benchmark's listeners on the head scan's own frame: the clean one, its layer variants, and the placed hard ones
+#: (the registered hard listeners carry the registration's error besides the ears').
+KINDS = ("new", *CLEAN_VARIANT_KINDS, *(kind for kind in HARD_KINDS if "placed" in kind))
 BAND_EDGES_HZ = (700.0, 4400.0, 6000.0, 8500.0, 10300.0, 13000.0, 18000.0)
 SAGITTAL_REACH_DEG = 30.0
 NOTCH_RANGE_HZ = (5000.0, 13000.0)
@@ -67,8 +72,8 @@ def rows_on(positions_deg: np.ndarray, wanted_deg: np.ndarray) -> np.ndarray:
     from scipy.spatial import cKDTree
 
     distance, nearest = cKDTree(unit_vectors(positions_deg)).query(unit_vectors(wanted_deg))
-    if np.any(distance > 2.0 * np.sin(np.radians(TOLERANCE_DEG) / 2.0)):
-        missing = int(np.sum(distance > 2.0 * np.sin(np.radians(TOLERANCE_DEG) / 2.0)))
+    missing = int(np.sum(distance > 2.0 * np.sin(np.radians(TOLERANCE_DEG) / 2.0)))  # chord of the tolerance
+    if missing:
         raise SystemExit(f"a listener's grid lacks {missing} of the dataset's directions; solve it with "
                          "listener.dataset_grid")
     return nearest

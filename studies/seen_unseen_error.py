@@ -11,7 +11,12 @@ Needs the listeners' run folders (results/listeners/<name>/, made by benchmarks/
 [--no-layer], --hard --oracle, --hard --noise-floor, --hard --supple-end and --hard --layer-variant points) and the
 step store's scanned head.
 
-Run: .venv/bin/python studies/seen_unseen_error.py [--subject P143]
+With ``--draw N`` (N >= 1) the two listeners solved on the N-th other draw of the same hard recipe instead
+(``<subject>_hard_placed_draw<N>``, the packaged layer, and ``<subject>_hard_points_placed_draw<N>``, the points layer:
+``benchmarks/new_listener.py --hard --placed --draw N`` and ``--hard --layer-variant points --draw N``), split by
+their own scans.
+
+Run: .venv/bin/python studies/seen_unseen_error.py [--subject P143] [--draw N]
 Last line: JSON {listener: {side: {seen|unseen: {area_share, median_mm, p95_mm, share_over_0_5mm}}}}.
 """
 from __future__ import annotations
@@ -68,16 +73,25 @@ def split_errors(pinna_path: Path, scan_path: Path, scanned_head, side: str) -> 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--subject", default="P143")
+    parser.add_argument("--draw", type=int, default=0,
+                        help="N >= 1: the listeners of the N-th other draw of the hard scans (packaged and points)")
     args = parser.parse_args()
+    if args.draw < 0:
+        parser.error(f"--draw {args.draw}: give 0 (the first draw) or a draw N >= 1 that benchmarks/new_listener.py solved")
     import bpy  # noqa: F401, PLC0415  (before pymeshlab)
     import trimesh  # noqa: PLC0415
 
     scanned_head = trimesh.load(STORE / f"{args.subject}_new" / "scanned" / "head.ply", process=False, force="mesh")
     result = {}
-    hard_scans = ROOT / "results" / "listeners" / f"{args.subject}_hard_placed" / "prepared"
-    for kind, step in (("hard_placed", "detail"), ("hard_ppm_placed", "align"), ("hard_oracle_placed", "detail"),
-                       ("hard_noise_placed", "detail"), ("hard_supple_placed", "detail"),
-                       ("hard_points_placed", "detail")):
+    if args.draw:
+        kinds = ((f"hard_placed_draw{args.draw}", "detail"), (f"hard_points_placed_draw{args.draw}", "detail"))
+    else:
+        kinds = (("hard_placed", "detail"), ("hard_ppm_placed", "align"), ("hard_oracle_placed", "detail"),
+                 ("hard_noise_placed", "detail"), ("hard_supple_placed", "detail"), ("hard_points_placed", "detail"))
+    # the scans of the draw: every listener of one draw is fitted to the same ones (its first listener's copy)
+    scan_folders = [ROOT / "results" / "listeners" / f"{args.subject}_{kind}" / "prepared" for kind, _ in kinds]
+    hard_scans = next((folder for folder in scan_folders if folder.is_dir()), scan_folders[0])
+    for kind, step in kinds:
         base = ROOT / "results" / "listeners" / f"{args.subject}_{kind}"
         if not base.is_dir() or not hard_scans.is_dir():
             print(f"{base} is missing: run benchmarks/new_listener.py --hard --placed [--no-layer | --oracle | --noise-floor | --supple-end | --layer-variant points] first",

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from ppm.align.detail import noise_schedule
-from ppm.align.scan_noise import scan_noise_mm
+from ppm.align.scan_noise import local_heights_mm, scan_noise_mm, settle_strays, stray_points
 from ppm.errors import PpmError
 
 
@@ -60,3 +60,56 @@ def test_the_schedule_ends_at_the_noise_floor_only_above_its_own_end():
     assert noise_schedule(packaged, 0.6, 1.0) == (10.0, 2.0, 0.5, 0.36)
     assert noise_schedule(packaged, 1.0, 1.0) == (10.0, 2.0, 1.0)
     assert noise_schedule(packaged, 4.0, 1.0) == (16.0,)
+
+
+def test_outliers_thrown_near_the_surface_are_found_and_good_points_kept():
+    """The hard level's sampling and noise (2 mm, 0.5 mm) with 4 % of the points thrown 2-3 mm along the normal, the
+    outliers an isolation test keeps: at 3 x the noise most are found (their heights lie beyond 1.5 mm), and few
+    good points are taken for them."""
+    rng = np.random.default_rng(6)
+    points, normals = _ear_sized_sheet(rng, 2.0)
+    noisy = points + rng.normal(0.0, 0.5, len(points))[:, None] * normals
+    thrown = rng.random(len(points)) < 0.04
+    noisy[thrown] += (rng.uniform(2.0, 3.0, int(thrown.sum())) * rng.choice([-1.0, 1.0], int(thrown.sum())))[:, None] \
+        * normals[thrown]
+    stray = stray_points(noisy, 3.0, 0.3)
+    assert (stray & thrown).sum() >= 0.6 * thrown.sum()
+    assert (stray & ~thrown).sum() <= 0.02 * (~thrown).sum()
+
+
+def test_on_a_clean_scan_the_floor_keeps_every_point():
+    """Noise 0.01 mm: the limit is 3 x the 0.3 mm floor, not 0.03 mm, so the sheet's curvature is not taken for
+    outliers; one point 2 mm off is."""
+    rng = np.random.default_rng(7)
+    points, normals = _ear_sized_sheet(rng, 1.0)
+    clean = points + rng.normal(0.0, 0.01, len(points))[:, None] * normals
+    assert not stray_points(clean, 3.0, 0.3).any()
+    clean[100] += 2.0 * normals[100]
+    assert np.flatnonzero(stray_points(clean, 3.0, 0.3)).tolist() == [100]
+
+
+def test_heights_over_a_reference_leave_the_point_itself_out():
+    """A point of the reference is measured over its neighbours without it; a point outside the reference over its
+    nearest reference points: both give the same height for the same point."""
+    rng = np.random.default_rng(8)
+    points, normals = _ear_sized_sheet(rng, 1.0)
+    points[50] += 1.0 * normals[50]
+    among = local_heights_mm(points)[50]
+    apart = local_heights_mm(points[50:51], reference_mm=np.delete(points, 50, axis=0))[0]
+    assert abs(among - apart) < 1e-9 and abs(abs(among) - 1.0) < 0.1
+
+
+def test_stray_points_settle_onto_their_neighbours_surface_and_the_rest_stay():
+    """Points thrown 2-3 mm off a clean sheet (1 mm sampling) come back within 0.05 mm of it, along its normal; the
+    other points do not move."""
+    rng = np.random.default_rng(9)
+    points, normals = _ear_sized_sheet(rng, 1.0)
+    thrown = np.zeros(len(points), dtype=bool)
+    thrown[rng.choice(len(points), 40, replace=False)] = True
+    moved = points.copy()
+    moved[thrown] += rng.uniform(2.0, 3.0, (40, 1)) * normals[thrown]
+    stray = stray_points(moved, 3.0, 0.3)
+    assert np.array_equal(stray, thrown)
+    settled = settle_strays(moved, stray)
+    assert np.abs(np.einsum("ij,ij->i", settled[thrown] - points[thrown], normals[thrown])).max() < 0.05
+    assert np.array_equal(settled[~thrown], moved[~thrown])

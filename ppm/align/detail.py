@@ -28,7 +28,7 @@ from ..errors import PpmError
 from ..geodesic import rim_vertices  # noqa: F401  (the layer holds the rim; tests import it from here)
 from ..model import DETAIL_KEY  # the shape key that holds the layer in a .blend
 from .report import boundary_samples
-from .scan_noise import scan_noise_mm
+from .scan_noise import scan_noise_mm, settle_strays, stray_points
 from .target import Target, surface_without_outliers
 
 
@@ -56,6 +56,8 @@ class DetailSettings:
     hole_fill_mm: float | None = None
     noise_stiffness_factor: float | None = None
     forward_weight: float = 1.0
+    outlier_sigmas: float | None = None
+    outlier_floor_mm: float = 0.3
 
     @classmethod
     def packaged(cls, **overrides) -> "DetailSettings":
@@ -85,6 +87,8 @@ class PersonalDetail:
     noise_mm : the scan's noise (:func:`ppm.align.scan_noise.scan_noise_mm`, mm) where ``noise_stiffness_factor``
         asked for it, else None.
     stiffness_mm2 : the schedule laid (mm²): the packaged one, ended at the noise's floor where there is one.
+    strays : scan vertices settled onto their neighbours' surface as standing off it (``outlier_sigmas``; None: not
+        asked).
     """
 
     displacement_mm: np.ndarray
@@ -94,6 +98,7 @@ class PersonalDetail:
     smoothings: int = 0
     noise_mm: float | None = None
     stiffness_mm2: tuple[float, ...] = ()
+    strays: int | None = None
 
     @property
     def size_mm(self) -> np.ndarray:
@@ -103,13 +108,14 @@ class PersonalDetail:
     def summary(self) -> dict:
         """Figures for a fit's report (mm and shares)."""
         size = self.size_mm
+        strays = {} if self.strays is None else {"stray_scan_points": self.strays}
         return {"trusted_share": round(float(self.trusted.mean()), 4),
                 "displacement_median_mm": round(float(np.median(size)), 4),
                 "displacement_p95_mm": round(float(np.percentile(size, 95)), 4),
                 "displacement_max_mm": round(float(size.max()), 4), "fold_halvings": self.halvings,
                 "fold_smoothings": self.smoothings, "stiffness_stages": self.stages,
                 "scan_noise_mm": None if self.noise_mm is None else round(self.noise_mm, 4),
-                "stiffness_end_mm2": self.stiffness_mm2[-1] if self.stiffness_mm2 else None}
+                "stiffness_end_mm2": self.stiffness_mm2[-1] if self.stiffness_mm2 else None, **strays}
 
 
 def joined_evidence(scan: Target, fill: trimesh.Trimesh) -> Target:
@@ -350,6 +356,15 @@ def personal_detail(vertices_mm: np.ndarray, faces: np.ndarray, target: Target,
     if not np.isfinite(vertices_mm).all():
         raise PpmError("the posed PPM has non-finite vertices; fit it again before adding the personal detail")
     scan = surface_without_outliers(target)
+    strays = None
+    if settings.outlier_sigmas is not None:
+        # outliers near the surface, which the isolation test keeps: their faces form tents that pairs agree on;
+        # settled onto their neighbours' surface, the scan keeps its faces (cutting them out leaves holes the size of
+        # the sampling, and the seen parts came out farther from the ear: studies/stray_evidence.py)
+        stray = stray_points(scan.vertices, settings.outlier_sigmas, settings.outlier_floor_mm, target.noise_mm)
+        strays = int(stray.sum())
+        if strays:
+            scan = trimesh.Trimesh(settle_strays(scan.vertices, stray), scan.faces, process=False)
     scan_points, scan_normals = np.asarray(scan.vertices), np.asarray(scan.vertex_normals)
     edge_points = boundary_samples(scan)
     scan_edge = cKDTree(edge_points) if len(edge_points) else None
@@ -412,7 +427,7 @@ def personal_detail(vertices_mm: np.ndarray, faces: np.ndarray, target: Target,
     displacement *= np.minimum(1.0, settings.max_displacement_mm / np.maximum(size, 1e-12))[:, None]
     displacement, halvings, smoothings = unfold(vertices_mm, faces, displacement, taper <= 0.0, settings)
     return PersonalDetail(displacement_mm=displacement, trusted=trusted, halvings=halvings, stages=stages,
-                          smoothings=smoothings, noise_mm=noise, stiffness_mm2=schedule[:stages])
+                          smoothings=smoothings, noise_mm=noise, stiffness_mm2=schedule[:stages], strays=strays)
 
 
 def add_personal_detail(model, target: Target, settings: DetailSettings | None = None,

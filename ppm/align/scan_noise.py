@@ -18,16 +18,23 @@ from ..errors import PpmError
 NEIGHBOURS = 20
 
 
-def local_heights_mm(points_mm: np.ndarray, neighbours: int = NEIGHBOURS) -> np.ndarray:
-    """Per point (mm), its height over the quadric z = ax² + bxy + cy² + dx + ey + f fitted by least squares to its
-    ``neighbours`` nearest points (itself left out), in the frame of their principal axes (z: the least one)."""
+def _local_quadrics(points_mm: np.ndarray, neighbours: int,
+                    reference_mm: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+    """Per point, its height (mm) over the quadric z = ax² + bxy + cy² + dx + ey + f fitted by least squares to its
+    ``neighbours`` nearest points of ``reference_mm`` (the points themselves where None; the point itself left out),
+    in the frame of their principal axes (z: the least one), and that z axis (unit)."""
     points = np.asarray(points_mm, dtype=np.float64)
-    if len(points) <= neighbours:
-        raise PpmError(f"a scan of {len(points)} points is too small to judge its noise (needs more than {neighbours})")
-    if not np.isfinite(points).all():
+    reference = points if reference_mm is None else np.asarray(reference_mm, dtype=np.float64)
+    if len(reference) <= neighbours:
+        raise PpmError(f"a scan of {len(reference)} points is too small to judge its noise "
+                       f"(needs more than {neighbours})")
+    if not (np.isfinite(points).all() and np.isfinite(reference).all()):
         raise PpmError("the scan's points hold NaN or infinite coordinates; clean the file before judging its noise")
-    _, index = cKDTree(points).query(points, neighbours + 1)
-    offsets = points[index[:, 1:]] - points[:, None, :]  # (n, k, 3): the neighbours about the point
+    distance, index = cKDTree(reference).query(points, neighbours + 1)
+    # leave the point itself out where it is among the reference (at distance 0), else the farthest of the k + 1
+    itself = distance[:, 0] == 0.0
+    index = np.where(itself[:, None], index[:, 1:], index[:, :-1])
+    offsets = reference[index] - points[:, None, :]  # (n, k, 3): the neighbours about the point
     centred = offsets - offsets.mean(axis=1, keepdims=True)
     _, _, axes = np.linalg.svd(centred, full_matrices=False)  # (n, 3, 3): rows are the principal axes
     local = np.einsum("nkj,nij->nki", offsets, axes)
@@ -36,7 +43,16 @@ def local_heights_mm(points_mm: np.ndarray, neighbours: int = NEIGHBOURS) -> np.
     normal = np.einsum("nki,nkj->nij", design, design) + 1e-9 * np.eye(6)
     right = np.einsum("nki,nk->ni", design, z)
     coefficients = np.linalg.solve(normal, right[..., None])[..., 0]
-    return -coefficients[:, 5]  # the point sits at the frame's origin: its height is 0 - f
+    return -coefficients[:, 5], axes[:, 2]  # the point sits at the frame's origin: its height is 0 - f
+
+
+def local_heights_mm(points_mm: np.ndarray, neighbours: int = NEIGHBOURS,
+                     reference_mm: np.ndarray | None = None) -> np.ndarray:
+    """Per point (mm), its height over the quadric z = ax² + bxy + cy² + dx + ey + f fitted by least squares to its
+    ``neighbours`` nearest points (itself left out), in the frame of their principal axes (z: the least one). The
+    neighbours are taken from ``reference_mm`` where given (a subset of the points, e.g. without the strays), else
+    from the points themselves."""
+    return _local_quadrics(points_mm, neighbours, reference_mm)[0]
 
 
 def scan_noise_mm(points_mm: np.ndarray, neighbours: int = NEIGHBOURS) -> float:
@@ -45,3 +61,32 @@ def scan_noise_mm(points_mm: np.ndarray, neighbours: int = NEIGHBOURS) -> float:
     points)."""
     heights = local_heights_mm(points_mm, neighbours)
     return float(1.4826 * np.median(np.abs(heights)) / np.sqrt(1.0 + 6.0 / neighbours))
+
+
+def stray_points(points_mm: np.ndarray, sigmas: float, floor_mm: float, noise_mm: float | None = None,
+                 neighbours: int = NEIGHBOURS) -> np.ndarray:
+    """Which points (bool, (n,)) stand off the scan's local surface by more than ``sigmas`` x the scan's noise
+    (``noise_mm``, else :func:`scan_noise_mm`; not below ``floor_mm``, so that on a clean scan only what lies well
+    off the surface counts): outliers near the surface, which an isolation test keeps (a point thrown 2-3 mm off a
+    scan sampled every 2 mm still has neighbours). Two passes: the heights over quadrics through all neighbours, then
+    over quadrics through the neighbours the first pass kept, so that a good point beside an outlier is not taken
+    for one."""
+    points = np.asarray(points_mm, dtype=np.float64)
+    noise = scan_noise_mm(points, neighbours) if noise_mm is None else float(noise_mm)
+    limit = sigmas * max(noise, floor_mm)
+    first = np.abs(local_heights_mm(points, neighbours)) > limit
+    if not first.any() or (~first).sum() <= neighbours:
+        return first
+    return np.abs(local_heights_mm(points, neighbours, reference_mm=points[~first])) > limit
+
+
+def settle_strays(points_mm: np.ndarray, stray: np.ndarray, neighbours: int = NEIGHBOURS) -> np.ndarray:
+    """The points (mm) with each stray one (``stray``: bool, from :func:`stray_points`) moved onto the quadric through
+    its nearest points that are not strays, along that quadric's axis: the scan keeps its faces and its sampling, but a
+    point thrown off the surface no longer lifts a tent of faces off it."""
+    points = np.array(points_mm, dtype=np.float64)
+    if not stray.any():
+        return points
+    heights, axes = _local_quadrics(points[stray], neighbours, points[~stray])
+    points[stray] -= heights[:, None] * axes
+    return points

@@ -77,7 +77,8 @@ def main() -> None:
                         help="N >= 1: the listeners of the N-th other draw of the hard scans (packaged and points)")
     args = parser.parse_args()
     if args.draw < 0:
-        parser.error(f"--draw {args.draw}: give 0 (the first draw) or a draw N >= 1 that benchmarks/new_listener.py solved")
+        parser.error(f"--draw {args.draw}: give 0 (the first draw) or a draw N >= 1 that "
+                     "benchmarks/new_listener.py solved")
     import bpy  # noqa: F401, PLC0415  (before pymeshlab)
     import trimesh  # noqa: PLC0415
 

@@ -359,8 +359,9 @@ def personal_detail(vertices_mm: np.ndarray, faces: np.ndarray, target: Target,
     strays = None
     if settings.outlier_sigmas is not None:
         # outliers near the surface, which the isolation test keeps: their faces form tents that pairs agree on;
-        # settled onto their neighbours' surface, the scan keeps its faces (cutting them out leaves holes the size of
-        # the sampling, and the seen parts came out farther from the ear: studies/stray_evidence.py)
+        # settled onto their neighbours' surface, the scan keeps its faces. Off by default: on the hard listener's
+        # scans settling them, and cutting them out with their faces, both took the seen parts farther from the ear
+        # (studies/stray_evidence.py)
         stray = stray_points(scan.vertices, settings.outlier_sigmas, settings.outlier_floor_mm, target.noise_mm)
         strays = int(stray.sum())
         if strays:

@@ -165,9 +165,9 @@ def layer_evidence(scan: Target, detail_settings: DetailSettings) -> Target:
                     "evidence", scan.source, error)
         return dataclasses.replace(scan, warnings=scan.warnings + (f"no hole fill: {error}",))
     joined = joined_evidence(scan, fill)
-    if detail_settings.noise_stiffness_factor is None:
+    if detail_settings.noise_stiffness_factor is None and detail_settings.outlier_sigmas is None:
         return joined
     from ppm.align.scan_noise import scan_noise_mm  # noqa: PLC0415
 
-    # the schedule's floor asks for the scan's own noise, not the smooth fill's
+    # the schedule's floor and the stray-point test ask for the scan's own noise, not the smooth fill's
     return dataclasses.replace(joined, noise_mm=scan_noise_mm(scan.mesh.vertices))

@@ -10,8 +10,9 @@ first: on the first draw it took the seen parts farther (studies/results/stray_e
 
 Measured like studies/seen_unseen_error.py: the layered pinna's faces split into those the hard scan saw and those it
 did not, each face centre to the head as scanned (area-weighted median / p95, mm, and the area share beyond
-0.5 mm), and the scan's points to the head as scanned: how many lie beyond 1.5 mm, and how many of those the test
-finds.
+0.5 mm), and the points of the surface the layer pairs with (the scan and its fill,
+``ppm.align.detail.evidence_surface``) to the head as scanned: how many lie beyond 1.5 mm, and how many of those the
+test finds.
 
 Run: .venv/bin/python studies/stray_evidence.py [--subject P143] [--sigmas 2.5 3]
 Last line: JSON {listener: {side: {"strays": {...}, setting: split figures}}}.
@@ -43,9 +44,7 @@ def main() -> None:
     import trimesh  # noqa: PLC0415
 
     from ppm.align import prepare_target  # noqa: PLC0415
-    from ppm.align.detail import DetailSettings, personal_detail  # noqa: PLC0415
-    from ppm.align.scan_noise import stray_points  # noqa: PLC0415
-    from ppm.align.target import surface_without_outliers  # noqa: PLC0415
+    from ppm.align.detail import DetailSettings, evidence_surface, personal_detail  # noqa: PLC0415
     from seen_unseen_error import MIRROR, STORE, split_errors  # noqa: PLC0415
     from stitching.reconstruction import layer_evidence  # noqa: PLC0415
 
@@ -65,18 +64,20 @@ def main() -> None:
             fit = trimesh.load(base / "align" / side / "aligned_pinna.ply", process=False, force="mesh")
             vertices, faces = np.asarray(fit.vertices), np.asarray(fit.faces)
             scan = prepare_target(scan_path, side=side, segment=False)
-            points = np.asarray(surface_without_outliers(scan).vertices)
+            # the scan and its fill, the same for every setting here; asked with the stray test on, it records the
+            # scan's own noise for the test (the packaged layer does not read it)
+            evidence = layer_evidence(scan, DetailSettings.packaged(outlier_sigmas=3.0))
+            points = np.asarray(evidence_surface(evidence, DetailSettings.packaged())[0].vertices)  # what it pairs with
             in_head = points @ (MIRROR if side == "right" else np.eye(3))  # the fits' left-ear frame back to the head's
             far = trimesh.proximity.closest_point(scanned_head, in_head)[1] > FAR_MM
             rows = {"strays": {"points": len(points), f"beyond_{FAR_MM:g}mm": int(far.sum())}}
-            print(f"{name} {side:5s}: {len(points)} scan points, {int(far.sum())} beyond {FAR_MM:g} mm of the head as "
-                  "scanned", flush=True)
+            print(f"{name} {side:5s}: {len(points)} evidence points (the scan and its fill), {int(far.sum())} beyond "
+                  f"{FAR_MM:g} mm of the head as scanned", flush=True)
             for sigmas in [None, *args.sigmas]:
                 label = "packaged" if sigmas is None else f"outlier_sigmas {sigmas:g}"
                 settings = DetailSettings.packaged(**({} if sigmas is None else {"outlier_sigmas": sigmas}))
-                evidence = layer_evidence(scan, settings)
                 if sigmas is not None:
-                    stray = stray_points(points, sigmas, settings.outlier_floor_mm, evidence.noise_mm)
+                    stray = evidence_surface(evidence, settings)[1]
                     rows["strays"][label] = {"settled": int(stray.sum()), "of_far": int((stray & far).sum())}
                 layer = personal_detail(vertices, faces, evidence, settings)
                 layered = out / f"{name}_{side}_{label.replace(' ', '_')}.ply"

@@ -334,6 +334,23 @@ def unfold(vertices_mm: np.ndarray, faces: np.ndarray, displacement_mm: np.ndarr
         halvings += 1
 
 
+def evidence_surface(target: Target, settings: DetailSettings) -> tuple[trimesh.Trimesh, np.ndarray | None]:
+    """The surface the layer pairs with (mm, project frame): ``target``'s without its isolated outliers, and with
+    ``outlier_sigmas`` its stray points settled onto their neighbours' surface; and which of its vertices were strays
+    (None where the test is off). Strays are outliers near the surface, which the isolation test keeps: their faces
+    form tents that pairs agree on; settled, the scan keeps its faces. The test takes the scan's own noise
+    (``target.noise_mm``, as ``stitching.reconstruction.layer_evidence`` records it), else reads it from the
+    surface. Off by default: on the hard listener's scans settling them, and cutting them out with their faces, both
+    took the seen parts farther from the ear (studies/stray_evidence.py)."""
+    scan = surface_without_outliers(target)
+    if settings.outlier_sigmas is None:
+        return scan, None
+    stray = stray_points(scan.vertices, settings.outlier_sigmas, settings.outlier_floor_mm, target.noise_mm)
+    if stray.any():
+        scan = trimesh.Trimesh(settle_strays(scan.vertices, stray), scan.faces, process=False)
+    return scan, stray
+
+
 def personal_detail(vertices_mm: np.ndarray, faces: np.ndarray, target: Target,
                     settings: DetailSettings | None = None) -> PersonalDetail:
     """The personal-detail layer of a posed PPM (``vertices_mm``, ``faces``: mm, project frame) on ``target``.
@@ -355,17 +372,8 @@ def personal_detail(vertices_mm: np.ndarray, faces: np.ndarray, target: Target,
     faces = np.asarray(faces, dtype=np.int64)
     if not np.isfinite(vertices_mm).all():
         raise PpmError("the posed PPM has non-finite vertices; fit it again before adding the personal detail")
-    scan = surface_without_outliers(target)
-    strays = None
-    if settings.outlier_sigmas is not None:
-        # outliers near the surface, which the isolation test keeps: their faces form tents that pairs agree on;
-        # settled onto their neighbours' surface, the scan keeps its faces. Off by default: on the hard listener's
-        # scans settling them, and cutting them out with their faces, both took the seen parts farther from the ear
-        # (studies/stray_evidence.py)
-        stray = stray_points(scan.vertices, settings.outlier_sigmas, settings.outlier_floor_mm, target.noise_mm)
-        strays = int(stray.sum())
-        if strays:
-            scan = trimesh.Trimesh(settle_strays(scan.vertices, stray), scan.faces, process=False)
+    scan, stray = evidence_surface(target, settings)
+    strays = None if stray is None else int(stray.sum())
     scan_points, scan_normals = np.asarray(scan.vertices), np.asarray(scan.vertex_normals)
     edge_points = boundary_samples(scan)
     scan_edge = cKDTree(edge_points) if len(edge_points) else None

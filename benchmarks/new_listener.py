@@ -23,7 +23,9 @@ and its head as scanned solved the same way (listener.scanned_head), then judged
 - with --hard --oracle, the listener <subject>_hard_oracle_placed: the placed, layered listener whose hard scans are
   completed by the truth where they were blind (reporting.stitched_region.completed_where_blind: the clean crop, its
   vertices the scan saw moved onto the scan): what the parts the scans were blind to cost the hard listener (unseen_share_of_hard_placed_gap: the share of hard_placed's both-ear delta QE and PE that
-  the completed scans take away);
+  the completed scans take away); with --draw N the same on another draw of the scans (hard_oracle_placed_draw<N>;
+  unseen_share_of_hard_placed_gap_draws, and hard_oracle_placed_draws_mean: how near a layer that followed the
+  scans exactly where they saw could come, over the draws);
 - with --hard --noise-floor, the listener <subject>_hard_noise_placed: the placed, layered listener whose layer ends
   its stiffness schedule at the scan's own noise (listener.personal_detail_settings: noise_stiffness_factor 1;
   studies/noise_stiffness.py): whether that geometric gain is an acoustic one;
@@ -82,7 +84,8 @@ STORE = KEPT / "steps_dataset_grid"
 #: placed listeners with another layer (hard_<variant>_placed) and on further draws of the hard scans (..._draw<N>).
 HARD_KINDS = ("hard", "hard_ppm", "hard_placed", "hard_ppm_placed", "hard_oracle_placed", "hard_noise_placed",
               "hard_supple_placed", "hard_points_placed", "hard_placed_draw1",
-              "hard_points_placed_draw1", "hard_placed_draw2", "hard_points_placed_draw2")
+              "hard_points_placed_draw1", "hard_placed_draw2", "hard_points_placed_draw2",
+              "hard_oracle_placed_draw1")
 #: The layer's settings (ppm/data/personal_detail.yaml names) of the placed hard listeners hard_<variant>_placed whose
 #: layer differs from the packaged one.
 LAYER_VARIANTS = {"noise": {"noise_stiffness_factor": 1.0},
@@ -95,7 +98,8 @@ DATASET_SOFA = "hrir_mesh2hrtf_48k.sofa"
 #: Keys of the kept JSON that the report works out itself after the carry (from fresh or carried figures): never
 #: carried.
 DERIVED_AFTER_CARRY = ("carried_from_kept", "unseen_share_of_hard_placed_gap", "hard_placed_draws_mean",
-                       "hard_points_placed_draws_mean")
+                       "hard_points_placed_draws_mean", "hard_oracle_placed_draws_mean",
+                       "unseen_share_of_hard_placed_gap_draws")
 
 
 def evaluation_hard_scan() -> dict:
@@ -185,12 +189,13 @@ def listener_kind(hard: bool = False, layer: bool = True, placed: bool = False, 
     are completed by the clean crop where they were blind), hard_<variant>_placed (the placed, layered listener whose
     layer is laid with :data:`LAYER_VARIANTS` [variant]: noise, ended at the scan's noise; supple, a stage further;
     points, the supple end led by the scan's points more than by its surface), hard[_<variant>]_placed_draw<N> (the
-    placed, layered listener on another draw of the hard scans), new_<variant> (the clean head scan, its layer laid
+    placed, layered listener on another draw of the hard scans), hard_oracle_placed_draw<N> (that draw completed by
+    the clean crop where it was blind), new_<variant> (the clean head scan, its layer laid
     with :data:`LAYER_VARIANTS` [variant])."""
     if not hard:
         return f"new_{variant}" if variant else "new"
     if draw:
-        return f"hard_{variant + '_' if variant else ''}placed_draw{draw}"
+        return f"hard_{'oracle_' if oracle else variant + '_' if variant else ''}placed_draw{draw}"
     if oracle:
         return "hard_oracle_placed"
     if variant:
@@ -479,7 +484,15 @@ def report(subject: str, seed: int) -> dict:
         summary["unseen_share_of_hard_placed_gap"] = {
             quantity: round(1.0 - summary[f"hard_oracle_placed_paper_delta_{quantity}"]
                             / summary[f"hard_placed_paper_delta_{quantity}"], 3) for quantity in ("qe_pp", "pe_deg")}
-    for layer in ("hard_placed", "hard_points_placed"):
+    for draw in range(1, 10):
+        # the same share on a further draw, where its oracle has been solved (--hard --oracle --draw N)
+        oracle, layered = f"hard_oracle_placed_draw{draw}", f"hard_placed_draw{draw}"
+        if (summary.get(f"{oracle}_paper_delta_qe_pp") is not None
+                and summary.get(f"{layered}_paper_delta_qe_pp")):
+            summary.setdefault("unseen_share_of_hard_placed_gap_draws", {})[f"draw{draw}"] = {
+                quantity: round(1.0 - summary[f"{oracle}_paper_delta_{quantity}"]
+                                / summary[f"{layered}_paper_delta_{quantity}"], 3) for quantity in ("qe_pp", "pe_deg")}
+    for layer in ("hard_placed", "hard_points_placed", "hard_oracle_placed"):
         # a layer setting over the hard scans' draws: the first draw and every further one solved
         # (<layer>_draw<N>); one draw moves the figures by as much as a setting does
         draws = [kind for kind in HARD_KINDS if kind == layer or kind.startswith(f"{layer}_draw")]
@@ -542,8 +555,8 @@ def main() -> None:
                         "<subject>_hard_<NAME>_placed (the placed hard ear scans), its layer laid with "
                         "LAYER_VARIANTS[NAME] (--noise-floor is noise, --supple-end supple)")
     parser.add_argument("--draw", type=int, default=0,
-                        help="with --hard --placed (or --layer-variant NAME): the listener "
-                        "<subject>_hard[_NAME]_placed_draw<N>, the same recipe's hard ear scans drawn with the "
+                        help="with --hard --placed (or --oracle, or --layer-variant NAME): the listener "
+                        "<subject>_hard[_oracle|_NAME]_placed_draw<N>, the same recipe's hard ear scans drawn with the "
                         "evaluation's seed plus N (how far the figures move with the draw)")
     parser.add_argument("--until", default=None, help="run only up to this output of the listener (e.g. "
                         "remesh/validation.json: fits, stitch and remesh without the solve)")
@@ -561,9 +574,9 @@ def main() -> None:
         if variant and (args.no_layer or args.oracle or len(chosen) > 1):
             parser.error("--noise-floor, --supple-end or --layer-variant (one) goes with the layer, without --oracle "
                          "(with --hard it is placed)")
-        if args.draw and (args.draw < 0 or not (args.hard and (args.placed or variant)) or args.no_layer
-                          or args.oracle):
-            parser.error("--draw N (N > 0) goes with --hard --placed (or a layer variant), with the layer")
+        if args.draw and (args.draw < 0 or not (args.hard and (args.placed or args.oracle or variant))
+                          or args.no_layer):
+            parser.error("--draw N (N > 0) goes with --hard --placed (or --oracle, or a layer variant), with the layer")
         kind = listener_kind(args.hard, not args.no_layer, args.placed, args.oracle, variant, args.draw)
         name = f"{args.subject}_{kind}"
         run(args.subject, args.seed, args.cores, [f"results/listeners/{name}/{args.until}"] if args.until else None,

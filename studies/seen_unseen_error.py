@@ -14,7 +14,8 @@ step store's scanned head.
 With ``--draw N`` (N >= 1) the two listeners solved on the N-th other draw of the same hard recipe instead
 (``<subject>_hard_placed_draw<N>``, the packaged layer, and ``<subject>_hard_points_placed_draw<N>``, the points layer:
 ``benchmarks/new_listener.py --hard --placed --draw N`` and ``--hard --layer-variant points --draw N``), split by
-their own scans.
+their own scans, and the oracle of that draw where it was solved (``<subject>_hard_oracle_placed_draw<N>``,
+``--hard --oracle --draw N``).
 
 Run: .venv/bin/python studies/seen_unseen_error.py [--subject P143] [--draw N]
 Last line: JSON {listener: {side: {seen|unseen: {area_share, median_mm, p95_mm, share_over_0_5mm}}}}.
@@ -85,7 +86,8 @@ def main() -> None:
     scanned_head = trimesh.load(STORE / f"{args.subject}_new" / "scanned" / "head.ply", process=False, force="mesh")
     result = {}
     if args.draw:
-        kinds = ((f"hard_placed_draw{args.draw}", "detail"), (f"hard_points_placed_draw{args.draw}", "detail"))
+        kinds = ((f"hard_placed_draw{args.draw}", "detail"), (f"hard_points_placed_draw{args.draw}", "detail"),
+                 (f"hard_oracle_placed_draw{args.draw}", "detail"))
     else:
         kinds = (("hard_placed", "detail"), ("hard_ppm_placed", "align"), ("hard_oracle_placed", "detail"),
                  ("hard_noise_placed", "detail"), ("hard_supple_placed", "detail"), ("hard_points_placed", "detail"))

@@ -26,6 +26,11 @@ and its head as scanned solved the same way (listener.scanned_head), then judged
   the completed scans take away); with --draw N the same on another draw of the scans (hard_oracle_placed_draw<N>;
   unseen_share_of_hard_placed_gap_draws, and hard_oracle_placed_draws_mean: how near a layer that followed the
   scans exactly where they saw could come, over the draws);
+- with --hard --blind-oracle, the listener <subject>_hard_blind_oracle_placed: the placed, layered listener whose hard
+  scans are kept as they are, with the clean crop's faces added only where the scans were blind
+  (reporting.stitched_region.with_blind_parts): it differs from <subject>_hard_placed only where the scans never saw,
+  so that a perfect guess of the unseen parts is all it adds (the oracle above also samples the seen parts at the
+  crop's 1 mm without the outliers, moving the truth onto the scan); unseen_parts_share_of_hard_placed_gap;
 - with --hard --noise-floor, the listener <subject>_hard_noise_placed: the placed, layered listener whose layer ends
   its stiffness schedule at the scan's own noise (listener.personal_detail_settings: noise_stiffness_factor 1;
   studies/noise_stiffness.py): whether that geometric gain is an acoustic one;
@@ -48,7 +53,8 @@ way (or a fresh clone) continues from them. The posed head and the run's outputs
 results/listeners/ (not committed: the head is the dataset's).
 
 Run: .venv/bin/python benchmarks/new_listener.py [--subject P143] [--seed 7] [--cores 2]
-     [--hard [--no-layer] [--placed] [--oracle] [--noise-floor | --supple-end] [--draw N]] [--layer-variant NAME]
+     [--hard [--no-layer] [--placed] [--oracle | --blind-oracle] [--noise-floor | --supple-end] [--draw N]]
+     [--layer-variant NAME]
      [--until remesh/validation.json] [--report-only]
 Last line: JSON with paper_delta_qe_pp, paper_delta_pe_deg, paper_left_delta_qe_pp, paper_right_delta_qe_pp,
 hard_paper_delta_qe_pp, hard_paper_delta_pe_deg, hard_ppm_paper_delta_qe_pp, hard_ppm_paper_delta_pe_deg,
@@ -80,12 +86,15 @@ WORK = ROOT / "results" / "new_listener"
 #: KEPT / "steps" for the record.
 STORE = KEPT / "steps_dataset_grid"
 #: The listeners whose ears are fitted to hard scans: registered or placed, with the layer or without; and the placed,
-#: layered listener whose hard scans are completed by the truth where they were blind (hard_oracle_placed); the
+#: layered listener whose hard scans are completed by the truth where they were blind (hard_oracle_placed, and
+#: hard_blind_oracle_placed with the scans' seen parts kept as they are); the
 #: placed listeners with another layer (hard_<variant>_placed) and on further draws of the hard scans (..._draw<N>).
 HARD_KINDS = ("hard", "hard_ppm", "hard_placed", "hard_ppm_placed", "hard_oracle_placed", "hard_noise_placed",
               "hard_supple_placed", "hard_points_placed", "hard_placed_draw1",
               "hard_points_placed_draw1", "hard_placed_draw2", "hard_points_placed_draw2",
-              "hard_oracle_placed_draw1")
+              "hard_oracle_placed_draw1", "hard_blind_oracle_placed")
+#: The oracles of the placed hard listener (hard_ear_scans' ``oracle``) and the part of a listener's name they add.
+ORACLES = {"": "", "completed": "_oracle", "blind": "_blind_oracle"}
 #: The layer's settings (ppm/data/personal_detail.yaml names) of the placed hard listeners hard_<variant>_placed whose
 #: layer differs from the packaged one.
 LAYER_VARIANTS = {"noise": {"noise_stiffness_factor": 1.0},
@@ -99,7 +108,7 @@ DATASET_SOFA = "hrir_mesh2hrtf_48k.sofa"
 #: carried.
 DERIVED_AFTER_CARRY = ("carried_from_kept", "unseen_share_of_hard_placed_gap", "hard_placed_draws_mean",
                        "hard_points_placed_draws_mean", "hard_oracle_placed_draws_mean",
-                       "unseen_share_of_hard_placed_gap_draws")
+                       "unseen_share_of_hard_placed_gap_draws", "unseen_parts_share_of_hard_placed_gap")
 
 
 def evaluation_hard_scan() -> dict:
@@ -147,27 +156,29 @@ def hard_scan_mm(subject: str, side: str, draw: int = 0) -> "trimesh.Trimesh":
     return mirror_left_right(right_ear_scan_as_left(crop, subject, recipe["level"], seed))
 
 
-def hard_ear_scans(subject: str, seed: int, pose: np.ndarray, oracle: bool = False, draw: int = 0) -> dict[str, Path]:
+def hard_ear_scans(subject: str, seed: int, pose: np.ndarray, oracle: str = "", draw: int = 0) -> dict[str, Path]:
     """Both ears of the subject scanned at the ``hard`` level of ppm/data/scan_defects.yaml (occlusion holes, 2 mm
     sampling, 0.5 mm noise, outliers, spikes, a partial crop), each its own fixed draw (:func:`hard_scan_mm`); with
-    ``oracle`` each completed where it was blind by the clean crop (reporting.stitched_region.completed_where_blind:
-    what the listener loses to the parts its scans never saw); ``draw`` N > 0: another draw (:func:`hard_scan_mm`).
-    Posed and written in centimetres as the head is; returns side -> file."""
+    ``oracle`` "completed" each completed where it was blind by the clean crop
+    (reporting.stitched_region.completed_where_blind: the truth moved onto the scan where it saw), with "blind" each
+    kept as it is and the crop's faces added where it was blind (reporting.stitched_region.with_blind_parts);
+    ``draw`` N > 0: another draw (:func:`hard_scan_mm`). Posed and written in centimetres as the head is; returns
+    side -> file."""
     import trimesh  # noqa: PLC0415
 
     from core.atomic import atomic_path  # noqa: PLC0415
-    from reporting.stitched_region import completed_where_blind  # noqa: PLC0415
+    from reporting.stitched_region import completed_where_blind, with_blind_parts  # noqa: PLC0415
 
     paths = {}
     for side in ("left", "right"):
-        path = WORK / f"{subject}_hard{'_oracle' if oracle else ''}{f'_draw{draw}' if draw else ''}_{side}_ear_cm.ply"
+        path = WORK / f"{subject}_hard{ORACLES[oracle]}{f'_draw{draw}' if draw else ''}_{side}_ear_cm.ply"
         paths[side] = path
         if path.is_file():
             continue
         scan = hard_scan_mm(subject, side, draw)
         if oracle:
             crop = trimesh.load(SONICOM / subject / f"pinna_{side}_crop.ply", process=False, force="mesh")
-            scan = completed_where_blind(scan, crop)
+            scan = (completed_where_blind if oracle == "completed" else with_blind_parts)(scan, crop)
         posed = (np.asarray(scan.vertices) @ pose[:3, :3].T + pose[:3, 3]) / 10.0
         with atomic_path(path) as temporary:  # makes WORK too
             trimesh.Trimesh(posed, scan.faces, process=False).export(temporary, file_type="ply")
@@ -180,7 +191,7 @@ def snakemake(args: list[str]) -> None:
     subprocess.run(command, cwd=ROOT, check=True)
 
 
-def listener_kind(hard: bool = False, layer: bool = True, placed: bool = False, oracle: bool = False,
+def listener_kind(hard: bool = False, layer: bool = True, placed: bool = False, oracle: str = "",
                   variant: str | None = None, draw: int = 0) -> str:
     """Which of the subject's listeners (named <subject>_<kind>): new (the clean head scan), hard (hard ear scans,
     registered onto the head's ears), hard_ppm (the same, no personal-detail layer), hard_placed (the same hard ear
@@ -190,26 +201,27 @@ def listener_kind(hard: bool = False, layer: bool = True, placed: bool = False, 
     layer is laid with :data:`LAYER_VARIANTS` [variant]: noise, ended at the scan's noise; supple, a stage further;
     points, the supple end led by the scan's points more than by its surface), hard[_<variant>]_placed_draw<N> (the
     placed, layered listener on another draw of the hard scans), hard_oracle_placed_draw<N> (that draw completed by
-    the clean crop where it was blind), new_<variant> (the clean head scan, its layer laid
+    the clean crop where it was blind), hard_blind_oracle_placed (the hard scans kept as they are, the clean crop's
+    faces added where they were blind), new_<variant> (the clean head scan, its layer laid
     with :data:`LAYER_VARIANTS` [variant])."""
     if not hard:
         return f"new_{variant}" if variant else "new"
     if draw:
-        return f"hard_{'oracle_' if oracle else variant + '_' if variant else ''}placed_draw{draw}"
+        return f"hard{ORACLES[oracle] or ('_' + variant if variant else '')}_placed_draw{draw}"
     if oracle:
-        return "hard_oracle_placed"
+        return f"hard{ORACLES[oracle]}_placed"
     if variant:
         return f"hard_{variant}_placed"
     return ("hard" if layer else "hard_ppm") + ("_placed" if placed else "")
 
 
 def run(subject: str, seed: int, cores: int, targets: list[str] | None = None, hard: bool = False,
-        layer: bool = True, placed: bool = False, oracle: bool = False, variant: str | None = None,
+        layer: bool = True, placed: bool = False, oracle: str = "", variant: str | None = None,
         draw: int = 0) -> None:
     """The template without the subject, then the listener's whole run (NumCalc), or only ``targets``; with
     ``hard`` the listener whose ear scans are the hard ones (<subject>_hard; without ``layer`` <subject>_hard_ppm;
-    with ``placed`` <subject>_hard_placed, the ear scans placed by the head's frame; with ``oracle``
-    <subject>_hard_oracle_placed)."""
+    with ``placed`` <subject>_hard_placed, the ear scans placed by the head's frame; with ``oracle`` "completed"
+    <subject>_hard_oracle_placed, "blind" <subject>_hard_blind_oracle_placed)."""
     config = write_config(subject, seed, hard, layer, placed, oracle, variant, draw)
     snakemake(["--cores", str(cores), "--configfile", str(config.relative_to(ROOT)), "--rerun-triggers", "mtime",
                "--rerun-incomplete",
@@ -217,12 +229,13 @@ def run(subject: str, seed: int, cores: int, targets: list[str] | None = None, h
 
 
 def write_config(subject: str, seed: int, hard: bool = False, layer: bool = True, placed: bool = False,
-                 oracle: bool = False, variant: str | None = None, draw: int = 0) -> Path:
+                 oracle: str = "", variant: str | None = None, draw: int = 0) -> Path:
     """The run's config (results/new_listener/config.yaml; config_hard.yaml for the listener <subject>_hard, whose
     ears are fitted to their hard scans, given as the listener's separate ear scans, and whose reference is
     <subject>_new's head as scanned; config_hard_ppm.yaml for the same without the layer; config_hard_placed.yaml for
     the hard ear scans placed by the head's frame, ear_scan_frame: head; config_hard_oracle_placed.yaml for the placed
-    scans completed by the truth where they were blind; config_hard_<variant>_placed.yaml for the placed scans, the
+    scans completed by the truth where they were blind; config_hard_blind_oracle_placed.yaml for the placed scans with
+    the truth added only where they were blind; config_hard_<variant>_placed.yaml for the placed scans, the
     layer laid with LAYER_VARIANTS[variant]; config_hard_placed_draw<N>.yaml for another draw of the hard scans,
     placed; config_new_<variant>.yaml for the clean head scan with a layer variant, judged against <subject>_new's head
     as scanned), the template without the subject built first."""
@@ -484,6 +497,12 @@ def report(subject: str, seed: int) -> dict:
         summary["unseen_share_of_hard_placed_gap"] = {
             quantity: round(1.0 - summary[f"hard_oracle_placed_paper_delta_{quantity}"]
                             / summary[f"hard_placed_paper_delta_{quantity}"], 3) for quantity in ("qe_pp", "pe_deg")}
+    if (summary.get("hard_blind_oracle_placed_paper_delta_qe_pp") is not None
+            and summary.get("hard_placed_paper_delta_qe_pp")):
+        # what a perfect guess of the unseen parts alone takes off the placed hard listener's gap (share of it)
+        summary["unseen_parts_share_of_hard_placed_gap"] = {
+            quantity: round(1.0 - summary[f"hard_blind_oracle_placed_paper_delta_{quantity}"]
+                            / summary[f"hard_placed_paper_delta_{quantity}"], 3) for quantity in ("qe_pp", "pe_deg")}
     for draw in range(1, 10):
         # the same share on a further draw, where its oracle has been solved (--hard --oracle --draw N)
         oracle, layered = f"hard_oracle_placed_draw{draw}", f"hard_placed_draw{draw}"
@@ -544,6 +563,10 @@ def main() -> None:
                         help="with --hard: the listener <subject>_hard_oracle_placed, the placed hard ear scans "
                         "completed by the clean crop where they were blind (how much of the hard listener's gap the "
                         "unseen parts cost)")
+    parser.add_argument("--blind-oracle", action="store_true",
+                        help="with --hard: the listener <subject>_hard_blind_oracle_placed, the placed hard ear scans "
+                        "kept as they are, the clean crop's faces added where they were blind (what a perfect guess "
+                        "of the unseen parts alone is worth)")
     parser.add_argument("--noise-floor", action="store_true",
                         help="with --hard: the listener <subject>_hard_noise_placed, the placed hard ear scans with "
                         "the layer's stiffness schedule ended at their own noise (noise_stiffness_factor 1)")
@@ -564,23 +587,26 @@ def main() -> None:
     if not args.report_only:
         if args.no_layer and not args.hard:
             parser.error("--no-layer goes with --hard (the clean listener's layerless head is kept in steps/)")
-        if (args.placed or args.oracle) and not args.hard:
-            parser.error("--placed and --oracle go with --hard")
-        if args.oracle and args.no_layer:
-            parser.error("--oracle is the placed listener with the layer")
+        if args.oracle and args.blind_oracle:
+            parser.error("--oracle or --blind-oracle: one of them")
+        oracle = "completed" if args.oracle else "blind" if args.blind_oracle else ""
+        if (args.placed or oracle) and not args.hard:
+            parser.error("--placed, --oracle and --blind-oracle go with --hard")
+        if oracle and args.no_layer:
+            parser.error("--oracle and --blind-oracle are the placed listener with the layer")
         chosen = [name for name in ("noise" if args.noise_floor else None, "supple" if args.supple_end else None,
                                     args.layer_variant) if name]
         variant = chosen[0] if chosen else None
-        if variant and (args.no_layer or args.oracle or len(chosen) > 1):
+        if variant and (args.no_layer or oracle or len(chosen) > 1):
             parser.error("--noise-floor, --supple-end or --layer-variant (one) goes with the layer, without --oracle "
                          "(with --hard it is placed)")
         if args.draw and (args.draw < 0 or not (args.hard and (args.placed or args.oracle or variant))
-                          or args.no_layer):
+                          or args.no_layer or args.blind_oracle):
             parser.error("--draw N (N > 0) goes with --hard --placed (or --oracle, or a layer variant), with the layer")
-        kind = listener_kind(args.hard, not args.no_layer, args.placed, args.oracle, variant, args.draw)
+        kind = listener_kind(args.hard, not args.no_layer, args.placed, oracle, variant, args.draw)
         name = f"{args.subject}_{kind}"
         run(args.subject, args.seed, args.cores, [f"results/listeners/{name}/{args.until}"] if args.until else None,
-            args.hard, not args.no_layer, args.placed, args.oracle, variant, args.draw)
+            args.hard, not args.no_layer, args.placed, oracle, variant, args.draw)
     print(json.dumps(report(args.subject, args.seed)))
 
 

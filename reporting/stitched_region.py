@@ -39,6 +39,22 @@ def completed_where_blind(scan: trimesh.Trimesh, truth: trimesh.Trimesh,
     return trimesh.Trimesh(completed, truth.faces, process=False)
 
 
+def with_blind_parts(scan: trimesh.Trimesh, truth: trimesh.Trimesh) -> trimesh.Trimesh:
+    """An oracle scan that keeps the scan as it is: ``scan`` (mm) with the faces of ``truth`` (the clean crop, same
+    frame) whose three vertices the scan was blind to (:func:`seen_by`) added as further pieces. Unlike
+    :func:`completed_where_blind`, the seen parts keep the scan's own points, noise, outliers and sampling, so that
+    a listener fitted to it differs from the hard listener only where the scan never saw: what a perfect guess of the
+    unseen parts, and nothing else, is worth. The added pieces are not joined to the scan; the fit segments the
+    scan's largest piece, the personal-detail layer takes its evidence from all of them."""
+    blind = ~seen_by(scan.vertices, truth.vertices)
+    faces = np.asarray(truth.faces)[blind[np.asarray(truth.faces)].all(axis=1)]
+    patch = trimesh.Trimesh(np.asarray(truth.vertices, np.float64), faces, process=False)
+    patch.remove_unreferenced_vertices()
+    offset = len(scan.vertices)
+    return trimesh.Trimesh(np.vstack([np.asarray(scan.vertices, np.float64), patch.vertices]),
+                           np.vstack([np.asarray(scan.faces), np.asarray(patch.faces) + offset]), process=False)
+
+
 def region_distances(truth: Target, seen: np.ndarray, guide: trimesh.Trimesh, vertices_mm: np.ndarray,
                      faces: np.ndarray) -> dict[str, float]:
     """Over the region the stitch replaces under ``guide`` (the PPM fitted to the scan): truth -> surface and

@@ -70,3 +70,27 @@ def test_a_scan_completed_where_it_was_blind_gets_the_hole_back(ear):
     assert np.median(moved[~blind]) == pytest.approx(0.3, abs=0.03)
     rows = {row["region"]: row for row in pinna_coverage(crop.vertices, crop.faces, completed.vertices, landmarks)}
     assert rows["cymba conchae"]["seen_share"] == pytest.approx(1.0)
+
+
+def test_a_scan_with_its_blind_parts_added_keeps_what_it_saw(ear):
+    """The blind-parts oracle of benchmarks/new_listener.py --blind-oracle: the same holed scan 0.3 mm off the crop
+    keeps every one of its points where they were, and the crop's faces are added over the cymba's core only, so that
+    the cymba is seen again and nothing the scan saw moves."""
+    from reporting.coverage import pinna_coverage
+    from reporting.stitched_region import seen_by, with_blind_parts
+
+    crop, landmarks = ear
+    offset = trimesh.Trimesh(crop.vertices + 0.3 * crop.vertex_normals, crop.faces, process=False)
+    keep = np.linalg.norm(crop.vertices - landmarks["cymba_conchae"], axis=1) > 6.0
+    holed = offset.submesh([np.flatnonzero(keep[crop.faces].all(axis=1))], append=True)
+    oracle = with_blind_parts(holed, crop)
+    assert np.array_equal(oracle.vertices[:len(holed.vertices)], holed.vertices)
+    assert np.array_equal(oracle.faces[:len(holed.faces)], holed.faces)
+    added = oracle.vertices[len(holed.vertices):]
+    blind = ~seen_by(holed.vertices, crop.vertices)
+    assert 10 < len(added) <= blind.sum()
+    # the added points are the truth's own, all within the hole, none where the scan saw
+    assert np.allclose(trimesh.proximity.closest_point(crop, added)[1], 0.0, atol=1e-9)
+    assert np.all(np.linalg.norm(added - landmarks["cymba_conchae"], axis=1) < 6.0)
+    rows = {row["region"]: row for row in pinna_coverage(crop.vertices, crop.faces, oracle.vertices, landmarks)}
+    assert rows["cymba conchae"]["seen_share"] == pytest.approx(1.0)

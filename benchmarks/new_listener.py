@@ -27,10 +27,10 @@ and its head as scanned solved the same way (listener.scanned_head), then judged
   unseen_share_of_hard_placed_gap_draws, and hard_oracle_placed_draws_mean: how near a layer that followed the
   scans exactly where they saw could come, over the draws);
 - with --hard --blind-oracle, the listener <subject>_hard_blind_oracle_placed: the placed, layered listener whose hard
-  scans are kept as they are, with the clean crop's faces added only where the scans were blind
-  (reporting.stitched_region.with_blind_parts): it differs from <subject>_hard_placed only where the scans never saw,
-  so that a perfect guess of the unseen parts is all it adds (the oracle above also samples the seen parts at the
-  crop's 1 mm without the outliers, moving the truth onto the scan); unseen_parts_share_of_hard_placed_gap;
+  scans are completed by the truth where they were blind and keep their own heights where they saw
+  (reporting.stitched_region.heights_where_seen: each seen vertex of the clean crop moved along its normal onto the
+  scan, not to its closest point, which leaves less of the scan's noise than the scan has): near what a perfect guess
+  of the unseen parts alone is worth; unseen_parts_share_of_hard_placed_gap;
 - with --hard --noise-floor, the listener <subject>_hard_noise_placed: the placed, layered listener whose layer ends
   its stiffness schedule at the scan's own noise (listener.personal_detail_settings: noise_stiffness_factor 1;
   studies/noise_stiffness.py): whether that geometric gain is an acoustic one;
@@ -87,7 +87,7 @@ WORK = ROOT / "results" / "new_listener"
 STORE = KEPT / "steps_dataset_grid"
 #: The listeners whose ears are fitted to hard scans: registered or placed, with the layer or without; and the placed,
 #: layered listener whose hard scans are completed by the truth where they were blind (hard_oracle_placed, and
-#: hard_blind_oracle_placed with the scans' seen parts kept as they are); the
+#: hard_blind_oracle_placed with the scans' heights kept where they saw); the
 #: placed listeners with another layer (hard_<variant>_placed) and on further draws of the hard scans (..._draw<N>).
 HARD_KINDS = ("hard", "hard_ppm", "hard_placed", "hard_ppm_placed", "hard_oracle_placed", "hard_noise_placed",
               "hard_supple_placed", "hard_points_placed", "hard_placed_draw1",
@@ -160,14 +160,15 @@ def hard_ear_scans(subject: str, seed: int, pose: np.ndarray, oracle: str = "", 
     """Both ears of the subject scanned at the ``hard`` level of ppm/data/scan_defects.yaml (occlusion holes, 2 mm
     sampling, 0.5 mm noise, outliers, spikes, a partial crop), each its own fixed draw (:func:`hard_scan_mm`); with
     ``oracle`` "completed" each completed where it was blind by the clean crop
-    (reporting.stitched_region.completed_where_blind: the truth moved onto the scan where it saw), with "blind" each
-    kept as it is and the crop's faces added where it was blind (reporting.stitched_region.with_blind_parts);
+    (reporting.stitched_region.completed_where_blind: the truth moved to its closest point on the scan where it saw),
+    with "blind" the same with the truth moved along its normals onto the scan, so that the seen parts keep the scan's
+    heights (reporting.stitched_region.heights_where_seen);
     ``draw`` N > 0: another draw (:func:`hard_scan_mm`). Posed and written in centimetres as the head is; returns
     side -> file."""
     import trimesh  # noqa: PLC0415
 
     from core.atomic import atomic_path  # noqa: PLC0415
-    from reporting.stitched_region import completed_where_blind, with_blind_parts  # noqa: PLC0415
+    from reporting.stitched_region import completed_where_blind, heights_where_seen  # noqa: PLC0415
 
     paths = {}
     for side in ("left", "right"):
@@ -178,7 +179,11 @@ def hard_ear_scans(subject: str, seed: int, pose: np.ndarray, oracle: str = "", 
         scan = hard_scan_mm(subject, side, draw)
         if oracle:
             crop = trimesh.load(SONICOM / subject / f"pinna_{side}_crop.ply", process=False, force="mesh")
-            scan = (completed_where_blind if oracle == "completed" else with_blind_parts)(scan, crop)
+            if oracle == "completed":
+                scan = completed_where_blind(scan, crop)
+            else:
+                scan, placing = heights_where_seen(scan, crop)
+                print(f"{path.name}: the seen vertices of the crop placed on the scan: {placing}", flush=True)
         posed = (np.asarray(scan.vertices) @ pose[:3, :3].T + pose[:3, 3]) / 10.0
         with atomic_path(path) as temporary:  # makes WORK too
             trimesh.Trimesh(posed, scan.faces, process=False).export(temporary, file_type="ply")
@@ -201,9 +206,9 @@ def listener_kind(hard: bool = False, layer: bool = True, placed: bool = False, 
     layer is laid with :data:`LAYER_VARIANTS` [variant]: noise, ended at the scan's noise; supple, a stage further;
     points, the supple end led by the scan's points more than by its surface), hard[_<variant>]_placed_draw<N> (the
     placed, layered listener on another draw of the hard scans), hard_oracle_placed_draw<N> (that draw completed by
-    the clean crop where it was blind), hard_blind_oracle_placed (the hard scans kept as they are, the clean crop's
-    faces added where they were blind), new_<variant> (the clean head scan, its layer laid
-    with :data:`LAYER_VARIANTS` [variant])."""
+    the clean crop where it was blind), hard_blind_oracle_placed (the hard scans completed where they were blind, their
+    own heights kept where they saw), new_<variant> (the clean head scan, its layer laid with
+    :data:`LAYER_VARIANTS` [variant])."""
     if not hard:
         return f"new_{variant}" if variant else "new"
     if draw:
@@ -235,7 +240,7 @@ def write_config(subject: str, seed: int, hard: bool = False, layer: bool = True
     <subject>_new's head as scanned; config_hard_ppm.yaml for the same without the layer; config_hard_placed.yaml for
     the hard ear scans placed by the head's frame, ear_scan_frame: head; config_hard_oracle_placed.yaml for the placed
     scans completed by the truth where they were blind; config_hard_blind_oracle_placed.yaml for the placed scans with
-    the truth added only where they were blind; config_hard_<variant>_placed.yaml for the placed scans, the
+    their heights kept where they saw; config_hard_<variant>_placed.yaml for the placed scans, the
     layer laid with LAYER_VARIANTS[variant]; config_hard_placed_draw<N>.yaml for another draw of the hard scans,
     placed; config_new_<variant>.yaml for the clean head scan with a layer variant, judged against <subject>_new's head
     as scanned), the template without the subject built first."""
@@ -565,8 +570,8 @@ def main() -> None:
                         "unseen parts cost)")
     parser.add_argument("--blind-oracle", action="store_true",
                         help="with --hard: the listener <subject>_hard_blind_oracle_placed, the placed hard ear scans "
-                        "kept as they are, the clean crop's faces added where they were blind (what a perfect guess "
-                        "of the unseen parts alone is worth)")
+                        "completed by the clean crop where they were blind, their own heights kept where they saw (near "
+                        "what a perfect guess of the unseen parts alone is worth)")
     parser.add_argument("--noise-floor", action="store_true",
                         help="with --hard: the listener <subject>_hard_noise_placed, the placed hard ear scans with "
                         "the layer's stiffness schedule ended at their own noise (noise_stiffness_factor 1)")

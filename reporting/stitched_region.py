@@ -39,20 +39,40 @@ def completed_where_blind(scan: trimesh.Trimesh, truth: trimesh.Trimesh,
     return trimesh.Trimesh(completed, truth.faces, process=False)
 
 
-def with_blind_parts(scan: trimesh.Trimesh, truth: trimesh.Trimesh) -> trimesh.Trimesh:
-    """An oracle scan that keeps the scan as it is: ``scan`` (mm) with the faces of ``truth`` (the clean crop, same
-    frame) whose three vertices the scan was blind to (:func:`seen_by`) added as further pieces. Unlike
-    :func:`completed_where_blind`, the seen parts keep the scan's own points, noise, outliers and sampling, so that
-    a listener fitted to it differs from the hard listener only where the scan never saw: what a perfect guess of the
-    unseen parts, and nothing else, is worth. The added pieces are not joined to the scan; the fit segments the
-    scan's largest piece, the personal-detail layer takes its evidence from all of them."""
-    blind = ~seen_by(scan.vertices, truth.vertices)
-    faces = np.asarray(truth.faces)[blind[np.asarray(truth.faces)].all(axis=1)]
-    patch = trimesh.Trimesh(np.asarray(truth.vertices, np.float64), faces, process=False)
-    patch.remove_unreferenced_vertices()
-    offset = len(scan.vertices)
-    return trimesh.Trimesh(np.vstack([np.asarray(scan.vertices, np.float64), patch.vertices]),
-                           np.vstack([np.asarray(scan.faces), np.asarray(patch.faces) + offset]), process=False)
+def heights_where_seen(scan: trimesh.Trimesh, truth: trimesh.Trimesh,
+                       reach_mm: float = 3.0) -> tuple[trimesh.Trimesh, dict]:
+    """An oracle scan whose seen parts keep the scan's own deviations: ``truth`` (the clean crop, mm, same frame as
+    ``scan``) with each vertex the scan saw (:func:`seen_by`) moved along its normal, either way, to where that line
+    meets the scan's surface (the nearest crossing within ``reach_mm``; where none, its closest point on the scan),
+    and the truth where the scan was blind. :func:`completed_where_blind` moves each vertex to its closest point on
+    the scan instead, which picks the nearest of the rough surface's facets and so leaves less of the scan's noise
+    than the scan has; a crossing along the normal keeps its height there, noise, spikes and outlier tents included.
+    One connected surface (the truth's), so that the pinna's segmentation keeps it all. Returns the surface and how
+    its seen vertices were placed (counts, and the median / p95 of their moves, mm)."""
+    completed = np.asarray(truth.vertices, np.float64).copy()
+    seen = np.flatnonzero(seen_by(scan.vertices, completed))
+    origins, normals = completed[seen], np.asarray(truth.vertex_normals)[seen]
+    nearest = np.full(len(seen), np.inf)
+    crossing = origins.copy()
+    for sign in (1.0, -1.0):
+        locations, ray, _ = scan.ray.intersects_location(origins, sign * normals, multiple_hits=True)
+        if not len(ray):
+            continue
+        distance = np.linalg.norm(locations - origins[ray], axis=1)
+        order = np.lexsort((distance, ray))  # per ray, its nearest crossing first
+        first = order[np.r_[True, ray[order][1:] != ray[order][:-1]]]
+        better = distance[first] < nearest[ray[first]]
+        nearest[ray[first][better]] = distance[first][better]
+        crossing[ray[first][better]] = locations[first][better]
+    crossed = nearest <= reach_mm
+    if (~crossed).any():
+        crossing[~crossed] = trimesh.proximity.closest_point(scan, origins[~crossed])[0]
+    completed[seen] = crossing
+    moves = np.linalg.norm(crossing - origins, axis=1)
+    report = {"seen_vertices": int(len(seen)), "crossed": int(crossed.sum()), "closest_instead": int((~crossed).sum()),
+              "move_median_mm": round(float(np.median(moves)), 4) if len(moves) else None,
+              "move_p95_mm": round(float(np.percentile(moves, 95)), 4) if len(moves) else None}
+    return trimesh.Trimesh(completed, truth.faces, process=False), report
 
 
 def region_distances(truth: Target, seen: np.ndarray, guide: trimesh.Trimesh, vertices_mm: np.ndarray,

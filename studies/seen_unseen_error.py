@@ -1,6 +1,7 @@
 """Where a hard listener's ears still miss (issue 54): each stitched pinna of the listeners whose hard ear scans were
 placed by the head's frame (P143_hard_placed with the personal-detail layer, P143_hard_ppm_placed without it, and
-P143_hard_oracle_placed, whose scans were completed by the truth where they were blind; P143_hard_noise_placed, whose
+P143_hard_oracle_placed, whose scans were completed by the truth where they were blind, and
+P143_hard_blind_oracle_placed, the same with the scans' own heights kept where they saw; P143_hard_noise_placed, whose
 layer ends at the scans' noise; P143_hard_supple_placed, whose layer goes a stage further; P143_hard_points_placed,
 the supple end led by the scan's points), split into the faces the hard scan saw (a scan point within
 reporting.coverage.SEEN_MM of the face's centre, the coverage report's rule) and the faces it did not, each face's
@@ -90,7 +91,8 @@ def main() -> None:
                  (f"hard_oracle_placed_draw{args.draw}", "detail"))
     else:
         kinds = (("hard_placed", "detail"), ("hard_ppm_placed", "align"), ("hard_oracle_placed", "detail"),
-                 ("hard_noise_placed", "detail"), ("hard_supple_placed", "detail"), ("hard_points_placed", "detail"))
+                 ("hard_noise_placed", "detail"), ("hard_supple_placed", "detail"), ("hard_points_placed", "detail"),
+                 ("hard_blind_oracle_placed", "detail"))
     # the scans of the draw: every listener of one draw is fitted to the same ones (its first listener's copy)
     scan_folders = [ROOT / "results" / "listeners" / f"{args.subject}_{kind}" / "prepared" for kind, _ in kinds]
     hard_scans = next((folder for folder in scan_folders if folder.is_dir()), scan_folders[0])

@@ -405,6 +405,15 @@ def ears_to_scanned(personal_head: Path, scanned_head: Path) -> dict:
     return out
 
 
+def gap_share(summary: dict, oracle: str, layered: str) -> dict | None:
+    """The share of listener ``layered``'s both-ear ΔQE and ΔPE that listener ``oracle`` takes away (1 - oracle /
+    layered), or None while either is unjudged."""
+    if summary.get(f"{oracle}_paper_delta_qe_pp") is None or not summary.get(f"{layered}_paper_delta_qe_pp"):
+        return None
+    return {quantity: round(1.0 - summary[f"{oracle}_paper_delta_{quantity}"]
+                            / summary[f"{layered}_paper_delta_{quantity}"], 3) for quantity in ("qe_pp", "pe_deg")}
+
+
 def report(subject: str, seed: int) -> dict:
     """The figures of a (finished or partial) run."""
     _, pose = posed_head(subject, seed)
@@ -496,26 +505,15 @@ def report(subject: str, seed: int) -> dict:
             print(f"carried from the kept {kept_file.name} (their run folders are not on this machine): "
                   f"{', '.join(carried)}", flush=True)
     # after the carry: on a fresh clone both figures may come from the kept JSON
-    if (summary.get("hard_oracle_placed_paper_delta_qe_pp") is not None
-            and summary.get("hard_placed_paper_delta_qe_pp")):
-        # what completing the hard scans where they were blind takes off the placed hard listener's gap (share of it)
-        summary["unseen_share_of_hard_placed_gap"] = {
-            quantity: round(1.0 - summary[f"hard_oracle_placed_paper_delta_{quantity}"]
-                            / summary[f"hard_placed_paper_delta_{quantity}"], 3) for quantity in ("qe_pp", "pe_deg")}
-    if (summary.get("hard_blind_oracle_placed_paper_delta_qe_pp") is not None
-            and summary.get("hard_placed_paper_delta_qe_pp")):
-        # what a perfect guess of the unseen parts alone takes off the placed hard listener's gap (share of it)
-        summary["unseen_parts_share_of_hard_placed_gap"] = {
-            quantity: round(1.0 - summary[f"hard_blind_oracle_placed_paper_delta_{quantity}"]
-                            / summary[f"hard_placed_paper_delta_{quantity}"], 3) for quantity in ("qe_pp", "pe_deg")}
-    for draw in range(1, 10):
-        # the same share on a further draw, where its oracle has been solved (--hard --oracle --draw N)
-        oracle, layered = f"hard_oracle_placed_draw{draw}", f"hard_placed_draw{draw}"
-        if (summary.get(f"{oracle}_paper_delta_qe_pp") is not None
-                and summary.get(f"{layered}_paper_delta_qe_pp")):
-            summary.setdefault("unseen_share_of_hard_placed_gap_draws", {})[f"draw{draw}"] = {
-                quantity: round(1.0 - summary[f"{oracle}_paper_delta_{quantity}"]
-                                / summary[f"{layered}_paper_delta_{quantity}"], 3) for quantity in ("qe_pp", "pe_deg")}
+    # what completing the hard scans where they were blind takes off the placed hard listener's gap (share of it):
+    # the closest-point oracle on each draw solved, and the oracle that keeps the scans' heights where they saw
+    shares = {"unseen_share_of_hard_placed_gap": gap_share(summary, "hard_oracle_placed", "hard_placed"),
+              "unseen_parts_share_of_hard_placed_gap": gap_share(summary, "hard_blind_oracle_placed", "hard_placed")}
+    summary.update({key: share for key, share in shares.items() if share})
+    by_draw = {kind.removeprefix("hard_oracle_placed_"): gap_share(summary, kind, kind.replace("_oracle", ""))
+               for kind in HARD_KINDS if kind.startswith("hard_oracle_placed_draw")}
+    if any(by_draw.values()):
+        summary["unseen_share_of_hard_placed_gap_draws"] = {draw: share for draw, share in by_draw.items() if share}
     for layer in ("hard_placed", "hard_points_placed", "hard_oracle_placed"):
         # a layer setting over the hard scans' draws: the first draw and every further one solved
         # (<layer>_draw<N>); one draw moves the figures by as much as a setting does
@@ -603,7 +601,7 @@ def main() -> None:
                                     args.layer_variant) if name]
         variant = chosen[0] if chosen else None
         if variant and (args.no_layer or oracle or len(chosen) > 1):
-            parser.error("--noise-floor, --supple-end or --layer-variant (one) goes with the layer, without --oracle "
+            parser.error("--noise-floor, --supple-end or --layer-variant (one) goes with the layer, without an oracle "
                          "(with --hard it is placed)")
         if args.draw and (args.draw < 0 or not (args.hard and (args.placed or args.oracle or variant))
                           or args.no_layer or args.blind_oracle):

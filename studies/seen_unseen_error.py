@@ -99,7 +99,7 @@ def main() -> None:
     for kind, step in kinds:
         base = ROOT / "results" / "listeners" / f"{args.subject}_{kind}"
         if not base.is_dir() or not hard_scans.is_dir():
-            print(f"{base} is missing: run benchmarks/new_listener.py --hard --placed [--no-layer | --oracle | --noise-floor | --supple-end | --layer-variant points] first",
+            print(f"{base} is missing: run benchmarks/new_listener.py --hard --placed [--no-layer | --oracle | --blind-oracle | --noise-floor | --supple-end | --layer-variant points] first",
                   flush=True)
             continue
         result[kind] = {}
